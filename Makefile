@@ -1,0 +1,24 @@
+# The two quick-start commands: `make run` (train a built-in problem on CPU) and `make test`.
+.PHONY: run test test-slow bench venv clean
+
+VENV := .venv
+GINN := $(VENV)/bin/ginn
+PYTEST := $(VENV)/bin/python -m pytest
+
+venv:
+	@bash scripts/setup-venv.sh
+
+run: venv
+	$(GINN) train obstacle --preset demo --out runs/quickstart-obstacle
+
+test: venv
+	$(PYTEST) -m "not slow"
+
+test-slow: venv
+	$(PYTEST) -m slow -q -p no:cacheprovider
+
+bench: venv
+	$(VENV)/bin/python benchmarks/derivatives.py
+
+clean:
+	rm -rf $(VENV) runs .pytest_cache

@@ -1,0 +1,83 @@
+"""Abstract geometry: regions (with signed distance) and interfaces (with samples and normals).
+
+Conventions: points ``x`` are tensors of shape ``(n, d)``; a region's ``sdf`` is negative inside,
+positive outside; an interface's prescribed normal points *out of the shape* (the direction of
+``grad f`` for a field whose shape is ``{f <= 0}``).
+"""
+
+from __future__ import annotations
+
+import abc
+from dataclasses import dataclass
+
+import torch
+from torch import Tensor
+
+
+class Region(abc.ABC):
+    """A solid region of R^d described by a signed distance function (exact or approximate)."""
+
+    dim: int
+
+    @abc.abstractmethod
+    def sdf(self, x: Tensor) -> Tensor:
+        """Signed distance ``(n, d) -> (n,)``: negative inside, positive outside."""
+
+    def contains(self, x: Tensor) -> Tensor:
+        """Boolean ``(n,)``: is each point inside (``sdf <= 0``)?"""
+        return self.sdf(x) <= 0
+
+
+class Interface(abc.ABC):
+    """A (d-1)-dimensional set the shape's boundary must pass through, optionally with normals.
+
+    ``n_components`` is the number of connected components (the metrics count which components
+    a shape reaches).
+    """
+
+    dim: int
+    has_normals: bool = True
+
+    @abc.abstractmethod
+    def sample(
+        self, n: int, generator: torch.Generator | None = None, device=None, dtype=torch.float32
+    ) -> tuple[Tensor, Tensor]:
+        """``n`` points uniformly (by length/area) on the interface, ``(n, d)``, and their unit
+        prescribed normals ``(n, d)`` (zeros where ``has_normals`` is False)."""
+
+    @abc.abstractmethod
+    def measure(self) -> float:
+        """Total length (2D) or area (3D)."""
+
+    @property
+    def n_components(self) -> int:
+        return 1
+
+    def component_of(self, x: Tensor) -> Tensor:
+        """Component index ``(n,)`` of points lying on the interface (default: all 0)."""
+        return torch.zeros(x.shape[0], dtype=torch.long, device=x.device)
+
+
+@dataclass(frozen=True)
+class Box:
+    """An axis-aligned box ``[lo, hi]`` (the domain X): ``lo``, ``hi`` are length-d tuples."""
+
+    lo: tuple[float, ...]
+    hi: tuple[float, ...]
+
+    @property
+    def dim(self) -> int:
+        return len(self.lo)
+
+    def volume(self) -> float:
+        v = 1.0
+        for a, b in zip(self.lo, self.hi):
+            v *= b - a
+        return v
+
+    def tensors(self, device=None, dtype=torch.float32) -> tuple[Tensor, Tensor]:
+        return (torch.tensor(self.lo, device=device, dtype=dtype), torch.tensor(self.hi, device=device, dtype=dtype))
+
+    def contains(self, x: Tensor) -> Tensor:
+        lo, hi = self.tensors(x.device, x.dtype)
+        return ((x >= lo) & (x <= hi)).all(dim=-1)

@@ -1,0 +1,1 @@
+"""Loss terms: constraints (Table 1 and more) and diversity."""

@@ -1,0 +1,41 @@
+"""The geometric description of a GINN design problem, as objects (the spec loader builds it)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from ..geometry.base import Box, Interface, Region
+
+
+@dataclass(frozen=True)
+class Problem:
+    """A design problem: the shape ``Omega = {f <= 0}`` must lie in ``design_region`` inside
+    ``domain``, touch every interface (with its prescribed normals), and avoid the obstacles.
+
+    Attributes:
+        name: short name (``obstacle``, ``bracket``, ...).
+        domain: the box X in which the field is trained and evaluated.
+        design_region: E (None: the whole domain).
+        interfaces: I, one object per *kind* of interface; ``sum(i.n_components)`` components.
+        obstacles: regions the shape must not enter (also removed from E by the spec builder).
+        interface_band: half-width of the denser sampling band around the interfaces (0: none).
+        unit_scale: length scale at which metric tolerances such as eps = 0.01 are stated.
+    """
+
+    name: str
+    domain: Box
+    design_region: Region | None = None
+    interfaces: tuple[Interface, ...] = ()
+    obstacles: tuple[Region, ...] = ()
+    interface_band: float = 0.0
+    unit_scale: float = 1.0
+    description: str = ""
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def dim(self) -> int:
+        return self.domain.dim
+
+    @property
+    def n_interface_components(self) -> int:
+        return sum(i.n_components for i in self.interfaces)

@@ -1,0 +1,151 @@
+"""The derivative engine against exact, hand-written fields in float64."""
+
+import math
+
+import pytest
+import torch
+
+from ginn import fields
+from ginn.fields import as_field, evaluate
+
+D = torch.float64
+
+
+def sphere(r, c=None):
+    def f(x):
+        cc = torch.zeros(x.shape[-1], dtype=x.dtype) if c is None else torch.as_tensor(c, dtype=x.dtype)
+        return (x - cc).norm(dim=-1) - r
+
+    return as_field(f)
+
+
+def cylinder_z(r):
+    return as_field(lambda x: x[:, :2].norm(dim=-1) - r)
+
+
+def plane(n, off):
+    n = torch.tensor(n, dtype=D)
+    n = n / n.norm()
+    return as_field(lambda x: x @ n - off)
+
+
+def points_on_sphere(m, r, d=3, gen=None):
+    p = torch.randn(m, d, dtype=D, generator=gen)
+    return r * p / p.norm(dim=-1, keepdim=True)
+
+
+@pytest.mark.parametrize("r", [0.3, 1.0, 2.5])
+def test_sphere_sdf(r, gen):
+    x = points_on_sphere(200, r, gen=gen) * 1.3  # off the surface too: level sets are spheres
+    rad = x.norm(dim=-1)
+    v = evaluate(sphere(r), x, hessian_at=True, create_graph=False)
+    assert torch.allclose(v.grad.norm(dim=-1), torch.ones(200, dtype=D), atol=1e-10)
+    kH = fields.mean_curvature(v.hessian_grad, v.hessian)
+    assert torch.allclose(kH, 1 / rad, atol=1e-6)
+    assert torch.allclose(fields.divergence_of_normal(v.hessian_grad, v.hessian), 2 / rad, atol=1e-6)
+    assert torch.allclose(fields.surface_strain(v.hessian_grad, v.hessian), 2 / rad**2, atol=1e-6)
+    assert torch.allclose(fields.gaussian_curvature(v.hessian_grad, v.hessian), 1 / rad**2, atol=1e-6)
+    k = fields.principal_curvatures(v.hessian_grad, v.hessian)
+    assert torch.allclose(k, (1 / rad)[:, None].expand(-1, 2), atol=1e-6)
+    assert torch.allclose(fields.laplacian(v.hessian), 2 / rad, atol=1e-6)
+
+
+def test_cylinder_strain(gen):
+    r = 0.7
+    p = torch.randn(100, 3, dtype=D, generator=gen)
+    p[:, :2] = r * p[:, :2] / p[:, :2].norm(dim=-1, keepdim=True)
+    v = evaluate(cylinder_z(r), p, hessian_at=True, create_graph=False)
+    assert torch.allclose(fields.surface_strain(v.grad, v.hessian), torch.full((100,), 1 / r**2, dtype=D), atol=1e-6)
+    assert torch.allclose(fields.mean_curvature(v.grad, v.hessian), torch.full((100,), 0.5 / r, dtype=D), atol=1e-6)
+    assert torch.allclose(fields.gaussian_curvature(v.grad, v.hessian), torch.zeros(100, dtype=D), atol=1e-6)
+
+
+def test_plane_all_zero(gen):
+    x = torch.randn(50, 3, dtype=D, generator=gen)
+    v = evaluate(plane([1.0, 2.0, -0.5], 0.3), x, hessian_at=True, create_graph=False)
+    for q in (fields.mean_curvature, fields.surface_strain, fields.gaussian_curvature):
+        assert q(v.grad, v.hessian).abs().max() < 1e-10
+    n = torch.tensor([1.0, 2.0, -0.5], dtype=D)
+    assert torch.allclose(fields.unit_normal(v.grad), (n / n.norm()).expand(50, 3), atol=1e-12)
+
+
+def test_circle_curvature_2d(gen):
+    r = 0.4
+    x = points_on_sphere(64, r, d=2, gen=gen)
+    v = evaluate(sphere(r), x, hessian_at=True, create_graph=False)
+    assert torch.allclose(fields.mean_curvature(v.grad, v.hessian), torch.full((64,), 1 / r, dtype=D), atol=1e-6)
+    assert torch.allclose(fields.surface_strain(v.grad, v.hessian), torch.full((64,), 1 / r**2, dtype=D), atol=1e-6)
+
+
+def test_quadratic_hessian(gen):
+    A = torch.tensor([[2.0, 0.5, -1.0], [0.5, 3.0, 0.2], [-1.0, 0.2, 1.0]], dtype=D)
+    b = torch.tensor([0.1, -0.2, 0.3], dtype=D)
+    q = as_field(lambda x: 0.5 * torch.einsum("ni,ij,nj->n", x, A, x) + x @ b)
+    x = torch.randn(30, 3, dtype=D, generator=gen)
+    v = evaluate(q, x, hessian_at=torch.arange(0, 30, 3), create_graph=False)
+    assert torch.allclose(v.grad, x @ A + b, atol=1e-12)
+    assert v.hessian.shape == (10, 3, 3)
+    assert torch.allclose(v.hessian, A.expand(10, 3, 3), atol=1e-12)
+    assert torch.equal(v.hessian_index, torch.arange(0, 30, 3))
+
+
+def test_hessian_mask_and_empty(gen):
+    x = torch.randn(10, 2, dtype=D, generator=gen)
+    mask = torch.zeros(10, dtype=torch.bool)
+    v = evaluate(sphere(1.0), x, hessian_at=mask, create_graph=False)
+    assert v.hessian.shape == (0, 2, 2)
+    mask[3] = True
+    v = evaluate(sphere(1.0), x, hessian_at=mask, create_graph=False)
+    assert v.hessian.shape == (1, 2, 2)
+    assert torch.allclose(v.hessian_grad[0], v.grad[3])
+
+
+def test_differentiable_wrt_parameters():
+    """create_graph=True: curvature losses backpropagate to the weights; gradcheck through the engine."""
+    torch.manual_seed(0)
+    lin1 = torch.nn.Linear(2, 8).double()
+    lin2 = torch.nn.Linear(8, 1).double()
+    x = torch.randn(5, 2, dtype=D)
+
+    def loss_of(w1):
+        def fld(p, z=None):
+            return lin2(torch.tanh(torch.nn.functional.linear(p, w1, lin1.bias))).squeeze(-1)
+
+        v = evaluate(fld, x, hessian_at=True, create_graph=True)
+        return fields.divergence_of_normal(v.hessian_grad, v.hessian).pow(2).sum() + (v.grad.norm(dim=-1) - 1).pow(2).sum()
+
+    w = lin1.weight.detach().clone().requires_grad_(True)
+    assert torch.autograd.gradcheck(loss_of, (w,), eps=1e-6, atol=1e-5)
+
+
+def test_detached_mode_keeps_no_graph(gen):
+    model = torch.nn.Sequential(torch.nn.Linear(2, 4), torch.nn.Tanh(), torch.nn.Linear(4, 1))
+    fld = lambda p, z=None: model(p).squeeze(-1)  # noqa: E731
+    v = evaluate(fld, torch.randn(7, 2, generator=gen), hessian_at=True, create_graph=False)
+    for t in (v.f, v.grad, v.hessian):
+        assert not t.requires_grad
+
+
+def test_broadcast_latents():
+    x = torch.arange(6.0).reshape(3, 2)
+    z = torch.tensor([[10.0], [20.0]])
+    X, Z = fields.broadcast_latents(x, z)
+    assert X.shape == (6, 2) and Z.shape == (6, 1)
+    assert torch.equal(X[3:], x) and torch.all(Z[:3] == 10) and torch.all(Z[3:] == 20)
+    with pytest.raises(ValueError):
+        fields.broadcast_latents(torch.zeros(3, 4, 2), z)
+
+
+def test_value_chunked_equals_unchunked(gen):
+    f = sphere(0.5)
+    x = torch.randn(1000, 3, dtype=D, generator=gen)
+    assert torch.equal(fields.value(f, x, chunk=128), fields.value(f, x))
+
+
+def test_full_hessian_helper(gen):
+    x = torch.randn(4, 3, dtype=D, generator=gen)
+    f, g, H = fields.hessian(sphere(1.0), x)
+    rad = x.norm(dim=-1)
+    expect = (torch.eye(3, dtype=D) - (x / rad[:, None])[:, :, None] * (x / rad[:, None])[:, None, :]) / rad[:, None, None]
+    assert torch.allclose(H, expect, atol=1e-10)
+    assert math.isclose(float(f[0]), float(rad[0] - 1), abs_tol=1e-12)

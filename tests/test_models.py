@@ -1,0 +1,97 @@
+import pytest
+import torch
+
+from ginn.models import MLP, FourierMLP, PeriodicEncoding, ResMLP, Siren
+from ginn.fields import evaluate
+
+
+def make_models(d, k, out=1):
+    return [
+        Siren(d, [32, 32, 32], latent_dim=k, out_dim=out, w0_first=2.0),
+        ResMLP(d, width=32, n_blocks=3, latent_dim=k, out_dim=out, beta=10.0),
+        MLP(d, [16, 16], latent_dim=k, out_dim=out),
+        FourierMLP(d, [32, 32], latent_dim=k, out_dim=out, sigma=3.0, n_features=16),
+    ]
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+@pytest.mark.parametrize("k", [0, 1, 3])
+def test_models_run_with_and_without_latents(dtype, k):
+    torch.manual_seed(0)
+    x = torch.rand(11, 2, dtype=dtype)
+    z = torch.rand(11, k, dtype=dtype) if k else None
+    for m in make_models(2, k):
+        m = m.to(dtype)
+        y = m(x, z)
+        assert y.shape == (11,) and y.dtype == dtype and torch.isfinite(y).all()
+        v = evaluate(m, x, z, hessian_at=True, create_graph=False)
+        assert v.hessian.shape == (11, 2, 2) and torch.isfinite(v.hessian).all()
+
+
+def test_multi_output_and_empty_latent():
+    m = Siren(3, [16, 16], out_dim=2)
+    assert m(torch.rand(5, 3)).shape == (5, 2)
+    assert m(torch.rand(5, 3), torch.zeros(5, 0)).shape == (5, 2)
+
+
+def test_latent_changes_output_and_bad_shapes_raise():
+    torch.manual_seed(0)
+    m = Siren(2, [32, 32], latent_dim=1, w0_first=2.0)
+    x = torch.rand(8, 2)
+    a = m(x, torch.full((8, 1), -1.0))
+    b = m(x, torch.full((8, 1), 1.0))
+    assert (a - b).abs().max() > 1e-3
+    with pytest.raises(ValueError, match="latent"):
+        m(x)
+    with pytest.raises(ValueError, match="coordinates"):
+        m(torch.rand(8, 3), torch.zeros(8, 1))
+
+
+def test_siren_init_preactivations_stable():
+    """Sitzmann et al.: under the SIREN init every hidden pre-activation has ~unit variance."""
+    torch.manual_seed(0)
+    m = Siren(3, [512] * 6, w0_first=30.0).double()
+    x = torch.rand(4096, 3, dtype=torch.float64) * 2 - 1
+    with torch.no_grad():
+        pre = m.preactivations(x)
+    stds = [float(p.std()) for p in pre[1:]]  # hidden layers (first layer depends on w0_first)
+    assert len(stds) == 5
+    # fixed point: Var = 2 E[sin^2(u)], u ~ N(0, Var) -> std ~0.93; it must neither grow nor decay
+    for s in stds:
+        assert 0.85 < s < 1.1, stds
+    assert max(stds[1:]) / min(stds[1:]) < 1.05
+
+
+def test_siren_first_layer_frequency_scales_bandwidth():
+    torch.manual_seed(0)
+    lo = Siren(1, [64, 64], w0_first=1.0)
+    torch.manual_seed(0)
+    hi = Siren(1, [64, 64], w0_first=30.0)
+    x = torch.linspace(-1, 1, 2001)[:, None]
+    g_lo = evaluate(lo, x, create_graph=False).grad.abs().mean()
+    g_hi = evaluate(hi, x, create_graph=False).grad.abs().mean()
+    assert g_hi > 5 * g_lo
+
+
+def test_periodic_encoding_is_periodic():
+    torch.manual_seed(0)
+    m = Siren(2, [32, 32], encoding=PeriodicEncoding(), w0_first=3.0).double()
+    x = torch.rand(20, 2, dtype=torch.float64)
+    shift = torch.tensor([1.0, -2.0], dtype=torch.float64)
+    assert torch.allclose(m(x), m(x + shift), atol=1e-12)
+
+
+def test_softplus_beta_changes_sharpness():
+    torch.manual_seed(0)
+    m = ResMLP(2, width=8, n_blocks=2, beta=100.0)
+    assert m.core[1].beta == 100.0
+
+
+@pytest.mark.cuda
+def test_models_on_cuda():
+    for m in make_models(3, 1):
+        m = m.cuda()
+        x = torch.rand(10, 3, device="cuda")
+        z = torch.rand(10, 1, device="cuda")
+        v = evaluate(m, x, z, hessian_at=torch.arange(3, device="cuda"), create_graph=True)
+        assert v.hessian.device.type == "cuda"
