@@ -1,0 +1,403 @@
+"""The surface-network connectedness loss (Appendix C.3, Algorithm 1), cheap across steps.
+
+Per shape (all numbers below are per shape; the batch loss is the *mean* over the ``S`` shapes,
+so that its weight does not depend on the batch size):
+
+1. **Components of the shape among the vertices.** A vertex is *inside* when ``f <= 0``. Because
+   ``f`` is monotone along an integral path, a surface-network edge lies entirely inside the shape
+   exactly when both its endpoints are inside; the components are the connected components of the
+   inside vertices under those edges (``scipy.sparse.csgraph.connected_components``). By Morse
+   theory every component of ``{f <= 0}`` contains a minimum, so inside groups without a minimum
+   (paths lost at the domain boundary) are discarded.
+2. **The augmented weighted graph G_a**, with every component contracted to one node (the
+   paper's weight-0 edges within a component): surface-network edges between a component and an
+   outside vertex, weighted by the part of the integral path that lies *outside* the shape (for
+   an SDF this is the distance from the saddle to the boundary, so a two-edge path
+   component-saddle-component has the length of the *gap between the boundaries*, which is the
+   ``d`` of the paper's ``p ~ 1/d``); edges between two outside vertices (their path length);
+   and the augmentation: an edge between every pair of outside vertices with their Euclidean
+   distance.
+3. **Penalties**: for every pair of components ``{c_i, c_j}`` the shortest path in G_a
+   (``scipy.sparse.csgraph.dijkstra`` from every component node), of length ``d_ij``; every saddle
+   on that path that is adjacent to a component on the path gets ``p_k += 1 / (d_ij + eps)``.
+   Pairs with no path are counted in ``last_info["unreachable_pairs"]``. Then ``p`` is
+   normalised to sum 1 (per shape).
+4. **Loss** ``sum_k p_k f(x_k)`` with the saddle positions ``x_k`` held fixed (detached), so the
+   gradient moves the field, not the points.
+
+Design region: with ``restrict_to_design_region`` and a region, critical points outside it are
+removed from the graph (they neither form components nor receive penalties), as in the paper's
+bracket experiment.
+
+Cheap across steps (:class:`ConnectednessLoss`): the critical points persist. On a step without a
+full build they are re-converged with a few Newton steps on the current field; if every point
+converges, stays in the box, keeps its Morse index and none merge, the surface network's edges are
+kept (and only the components and penalties are recomputed if a vertex crossed ``f = 0``);
+otherwise (points lost) a full build runs. A full build (grid seeds plus the previous points,
+Newton, DBSCAN, path tracing) runs at least every ``config.every`` steps, and whenever the latent
+codes change.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field as dc_field
+
+import numpy as np
+import torch
+from scipy import sparse
+from scipy.sparse import csgraph
+from torch import Tensor
+
+from ..geometry.base import Box, Region
+from .critical import (
+    MINIMUM,
+    SADDLE,
+    CriticalPointOptions,
+    CriticalPoints,
+    find_critical_points,
+    latents_of,
+    reconverge,
+)
+from .surface_network import PathOptions, SurfaceNetwork, trace_surface_network
+
+
+@dataclass(frozen=True)
+class SurfaceNetworkLossOptions:
+    """Numerical settings of :class:`ConnectednessLoss` beyond :class:`ConnectednessConfig`.
+
+    Attributes:
+        critical: critical-point search settings.
+        paths: integral-path settings.
+        warm_steps: Newton steps of a warm update.
+        seed: seed of the generator of the seed-grid jitter.
+    """
+
+    critical: CriticalPointOptions = dc_field(default_factory=CriticalPointOptions)
+    paths: PathOptions = dc_field(default_factory=PathOptions)
+    warm_steps: int = 3
+    seed: int = 0
+
+
+@dataclass
+class Penalties:
+    """Result of :func:`saddle_penalties` for one shape.
+
+    Attributes:
+        weights: normalised penalty per vertex ``(m,)`` (zeros when the shape is connected).
+        n_components: number of components of the shape found among the vertices.
+        unreachable_pairs: component pairs with no path in G_a.
+        labels: component of each vertex ``(m,)`` (-1 outside the shape or discarded).
+    """
+
+    weights: np.ndarray
+    n_components: int
+    unreachable_pairs: int
+    labels: np.ndarray
+
+
+def shape_components(
+    f: np.ndarray, kind: np.ndarray, valid: np.ndarray, edges: np.ndarray
+) -> tuple[np.ndarray, int]:
+    """Components of ``{f <= 0}`` among the vertices of one shape.
+
+    Arguments:
+        f: vertex values ``(m,)``; kind: ``MINIMUM/SADDLE/MAXIMUM`` ``(m,)``; valid: vertices kept
+            (e.g. inside the design region) ``(m,)``; edges: ``(E, 2)`` vertex pairs.
+
+    Returns:
+        labels ``(m,)`` (``0..C-1``, -1 for outside/invalid/discarded vertices) and ``C``.
+    """
+    m = f.shape[0]
+    inside = (f <= 0) & valid
+    labels = np.full(m, -1, dtype=np.int64)
+    if not inside.any():
+        return labels, 0
+    e = edges[inside[edges[:, 0]] & inside[edges[:, 1]]] if edges.size else edges.reshape(0, 2)
+    A = sparse.coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(m, m))
+    _, lab = csgraph.connected_components(A, directed=False)
+    lab_in = lab[inside]
+    has_min = np.zeros(lab.max() + 1, dtype=bool)
+    has_min[lab[inside & (kind == MINIMUM)]] = True
+    keep_groups = np.unique(lab_in[has_min[lab_in]])
+    remap = np.full(lab.max() + 1, -1, dtype=np.int64)
+    remap[keep_groups] = np.arange(len(keep_groups))
+    labels[inside] = remap[lab_in]
+    return labels, int(len(keep_groups))
+
+
+def saddle_penalties(
+    x: np.ndarray,
+    f: np.ndarray,
+    kind: np.ndarray,
+    valid: np.ndarray,
+    edges: np.ndarray,
+    length: np.ndarray,
+    outside_length: np.ndarray,
+    eps: float,
+) -> Penalties:
+    """Algorithm 1 on the augmented surface network of one shape.
+
+    Arguments:
+        x: vertex positions ``(m, d)``; f: values ``(m,)``; kind: ``(m,)``; valid: ``(m,)`` bool.
+        edges: surface-network edges ``(E, 2)`` (local vertex indices); length, outside_length:
+            their arc lengths and the parts outside the shape ``(E,)``.
+        eps: the ``eps`` of ``1 / (d + eps)``.
+
+    Returns:
+        :class:`Penalties`.
+    """
+    m = f.shape[0]
+    labels, C = shape_components(f, kind, valid, edges)
+    weights = np.zeros(m)
+    if C <= 1:
+        return Penalties(weights, C, 0, labels)
+    outside = np.nonzero((f > 0) & valid)[0]
+    node = np.full(m, -1, dtype=np.int64)
+    node[labels >= 0] = labels[labels >= 0]
+    node[outside] = C + np.arange(len(outside))
+    N = C + len(outside)
+    W = np.full((N, N), np.inf)
+    if edges.size:
+        a, b = node[edges[:, 0]], node[edges[:, 1]]
+        ok = (a >= 0) & (b >= 0) & (a != b)
+        both_out = (a >= C) & (b >= C)
+        w = np.where(both_out, length, outside_length)
+        w = np.maximum(w, 1e-12)
+        np.minimum.at(W, (a[ok], b[ok]), w[ok])
+        np.minimum.at(W, (b[ok], a[ok]), w[ok])
+    if len(outside) > 1:
+        xo = x[outside]
+        D = np.linalg.norm(xo[:, None, :] - xo[None, :, :], axis=-1)
+        np.fill_diagonal(D, np.inf)
+        W[C:, C:] = np.minimum(W[C:, C:], np.maximum(D, 1e-12))
+    W[~np.isfinite(W)] = 0.0
+    dist, pred = csgraph.dijkstra(sparse.csr_matrix(W), directed=False, indices=np.arange(C), return_predecessors=True)
+    is_saddle = np.zeros(N, dtype=bool)
+    is_saddle[node[outside]] = kind[outside] == SADDLE
+    vertex_of = np.full(N, -1, dtype=np.int64)
+    vertex_of[node[outside]] = outside
+    unreachable = 0
+    for i in range(C):
+        for j in range(i + 1, C):
+            dij = dist[i, j]
+            if not np.isfinite(dij):
+                unreachable += 1
+                continue
+            path = [j]
+            while path[-1] != i:
+                path.append(int(pred[i, path[-1]]))
+            path = np.asarray(path)
+            comp = path < C
+            adj = np.zeros(len(path), dtype=bool)
+            adj[:-1] |= comp[1:]
+            adj[1:] |= comp[:-1]
+            hit = path[adj & ~comp & is_saddle[path]]
+            weights[vertex_of[hit]] += 1.0 / (dij + eps)
+    total = weights.sum()
+    if total > 0:
+        weights /= total
+    return Penalties(weights, C, unreachable, labels)
+
+
+def batch_penalties(
+    net: SurfaceNetwork, valid: np.ndarray, n_shapes: int, eps: float
+) -> tuple[np.ndarray, list[Penalties]]:
+    """:func:`saddle_penalties` for every shape of a batch.
+
+    Returns:
+        the penalty of every vertex ``(m,)`` (normalised per shape) and the per-shape results.
+    """
+    pts = net.points
+    x = pts.x.detach().cpu().double().numpy()
+    f = pts.f.detach().cpu().double().numpy()
+    kind = pts.kind.cpu().numpy()
+    shape = pts.shape.cpu().numpy()
+    p = np.zeros(pts.m)
+    results = []
+    edge_shape = shape[net.edges[:, 0]] if net.edges.size else np.zeros(0, np.int64)
+    for s in range(n_shapes):
+        vid = np.nonzero(shape == s)[0]
+        local = np.full(pts.m, -1, dtype=np.int64)
+        local[vid] = np.arange(len(vid))
+        es = edge_shape == s
+        e = local[net.edges[es]] if net.edges.size else np.zeros((0, 2), np.int64)
+        r = saddle_penalties(
+            x[vid], f[vid], kind[vid], valid[vid], e, net.length[es], net.outside_length[es], eps
+        )
+        p[vid] = r.weights
+        results.append(r)
+    return p, results
+
+
+class ConnectednessLoss:
+    """Stateful surface-network connectedness loss for all shapes of a batch.
+
+    Arguments:
+        domain: the box X (critical points outside are dropped; paths leaving it end).
+        design_region: the design region E, or None.
+        config: a :class:`ginn.train.config.ConnectednessConfig` (uses ``every``, ``grid``,
+            ``eps``, ``restrict_to_design_region``).
+        device, dtype: of the stored critical points (the field's).
+        options: numerical settings (:class:`SurfaceNetworkLossOptions`).
+
+    Call ``loss_fn(field, Z)`` with a field ``(x, z) -> (n,)`` and latents ``Z`` ``(S, k)`` or
+    None; returns a scalar tensor, differentiable w.r.t. the field's parameters (and ``Z``).
+    After each call ``last_info`` holds diagnostics (plain Python numbers).
+    """
+
+    def __init__(
+        self,
+        domain: Box,
+        design_region: Region | None,
+        config,
+        device=None,
+        dtype=torch.float32,
+        options: SurfaceNetworkLossOptions | None = None,
+    ):
+        self.domain = domain
+        self.region = design_region if getattr(config, "restrict_to_design_region", True) else None
+        self.config = config
+        self.device = torch.device(device) if device is not None else torch.device("cpu")
+        self.dtype = dtype
+        self.options = options or SurfaceNetworkLossOptions()
+        self.generator = torch.Generator().manual_seed(self.options.seed)
+        self.step = 0
+        self.last_full = -(10**9)
+        self.points: CriticalPoints | None = None
+        self.network: SurfaceNetwork | None = None
+        self.penalty: np.ndarray | None = None
+        self._inside: np.ndarray | None = None
+        self._latents: Tensor | None = None
+        self._seeds: tuple[Tensor, Tensor] | None = None
+        self._results: list[Penalties] = []
+        self.last_info: dict = {}
+
+    # --- state ---------------------------------------------------------------------------------
+
+    def state_dict(self) -> dict[str, Tensor]:
+        """Tensors only: the persistent critical points, the latents they belong to, counters."""
+        d = self.domain.dim
+        pts = self.points
+        return {
+            "points_x": (pts.x if pts is not None else torch.zeros(0, d)).detach().cpu(),
+            "points_shape": (pts.shape if pts is not None else torch.zeros(0, dtype=torch.long)).cpu(),
+            "latents": (self._latents if self._latents is not None else torch.zeros(0, 0)).detach().cpu(),
+            "step": torch.tensor(self.step),
+            "last_full": torch.tensor(self.last_full),
+        }
+
+    def load_state_dict(self, state: dict[str, Tensor]) -> None:
+        """Restore; the next call runs a full build seeded with the stored points."""
+        self.step = int(state["step"])
+        self.last_full = int(state["last_full"])
+        x = state["points_x"].to(self.device, self.dtype)
+        self._seeds = (x, state["points_shape"].to(self.device))
+        lat = state["latents"]
+        self._latents = lat.to(self.device, self.dtype) if lat.numel() else None
+        self.points = self.network = self.penalty = None
+
+    # --- work ----------------------------------------------------------------------------------
+
+    def _valid(self, pts: CriticalPoints) -> np.ndarray:
+        if self.region is None or pts.m == 0:
+            return np.ones(pts.m, dtype=bool)
+        return self.region.contains(pts.x).cpu().numpy().astype(bool)
+
+    def _full_build(self, field, Z: Tensor | None) -> None:
+        prev = self.points
+        if prev is None and self._seeds is not None:
+            x, s = self._seeds
+            d = x.shape[1]
+            prev = CriticalPoints(x, s, x.new_zeros(len(x)), x.new_zeros(len(x)), x.new_zeros(len(x), d), x.new_zeros(len(x), d, d))
+        self._seeds = None
+        pts = find_critical_points(
+            field, Z, self.domain, self.config.grid, prev, self.options.critical, self.generator, self.device, self.dtype
+        )
+        self.network = trace_surface_network(field, Z, self.domain, pts, self.config.grid, self.options.paths)
+        self.points = pts
+        self.last_full = self.step
+
+    def _penalise(self, S: int) -> list[Penalties]:
+        assert self.network is not None and self.points is not None
+        self.network.points = self.points
+        valid = self._valid(self.points)
+        self.penalty, results = batch_penalties(self.network, valid, S, self.config.eps)
+        self._inside = (self.points.f <= 0).cpu().numpy() & valid
+        self._results = results
+        return results
+
+    def _same_latents(self, Z: Tensor | None) -> bool:
+        if Z is None or self._latents is None:
+            return Z is None and self._latents is None
+        return Z.shape == self._latents.shape and bool(torch.equal(Z.detach(), self._latents))
+
+    def __call__(self, field, Z: Tensor | None) -> Tensor:
+        t0 = time.perf_counter()
+        S = 1 if Z is None else int(Z.shape[0])
+        Zd = None if Z is None else Z.detach().to(self.device, self.dtype)
+        full = (
+            self.points is None
+            or self.network is None
+            or not self._same_latents(Zd)
+            or self.step - self.last_full >= self.config.every
+        )
+        warm_ok = None
+        if not full:
+            assert self.points is not None
+            new, warm_ok = reconverge(
+                field, Zd, self.domain, self.points, self.config.grid, self.options.warm_steps, self.options.critical
+            )
+            if warm_ok:
+                self.points = new
+            else:
+                full = True
+        reason = "warm"
+        if full:
+            self._latents = Zd
+            self._full_build(field, Zd)
+            self._penalise(S)
+            reason = "full"
+        else:
+            inside = (self.points.f <= 0).cpu().numpy() & self._valid(self.points)
+            if self._inside is None or not np.array_equal(inside, self._inside):
+                self._penalise(S)
+                reason = "warm+graph"
+        loss = self._loss(field, Z, S)
+        pts = self.points
+        counts = pts.counts(S)
+        comps = [r.n_components for r in self._results]
+        self.last_info = {
+            "time": time.perf_counter() - t0,
+            "update": reason,
+            "warm_ok": warm_ok,
+            "n_components": comps,
+            "n_disconnected_shapes": int(sum(c > 1 for c in comps)),
+            "n_critical": pts.m,
+            "n_minima": int(counts["minima"].sum()),
+            "n_saddles": int(counts["saddles"].sum()),
+            "n_maxima": int(counts["maxima"].sum()),
+            "n_edges": int(len(self.network.edges)),
+            "n_paths": int(self.network.n_paths),
+            "n_penalised": int((self.penalty > 0).sum()),
+            "unreachable_pairs": int(sum(r.unreachable_pairs for r in self._results)),
+        }
+        self.step += 1
+        return loss
+
+    def _loss(self, field, Z: Tensor | None, S: int) -> Tensor:
+        assert self.points is not None and self.penalty is not None
+        k = np.nonzero(self.penalty > 0)[0]
+        kt = torch.from_numpy(k).to(self.device)
+        x = self.points.x[kt].detach()
+        z = latents_of(Z, self.points.shape[kt])
+        f = field(x, z)
+        p = torch.from_numpy(self.penalty[k]).to(device=f.device, dtype=f.dtype)
+        return (p * f).sum() / S
+
+    def penalised_points(self) -> tuple[Tensor, Tensor, Tensor]:
+        """The saddles penalised at the last call: positions ``(q, d)``, shapes ``(q,)`` and
+        weights ``(q,)``."""
+        assert self.points is not None and self.penalty is not None
+        k = torch.from_numpy(np.nonzero(self.penalty > 0)[0]).to(self.device)
+        return self.points.x[k], self.points.shape[k], torch.from_numpy(self.penalty).to(self.device)[k]

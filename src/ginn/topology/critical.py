@@ -1,0 +1,427 @@
+"""Critical points of a neural field, for all shapes of a batch at once (Appendix C.2, steps 1-2).
+
+Pipeline (:func:`find_critical_points`):
+
+1. **Seeds**: a jittered cell-centred grid over the domain for every shape, optionally reduced to
+   the grid nodes where ``|grad f|`` is a local minimum over the ``3^d`` neighbourhood (one batched
+   gradient pass; every non-degenerate critical point sits in such a basin), plus the previous
+   critical points (warm start).
+2. **Convergence to grad f = 0**: trust-region Newton steps ``dx = -H^{-1} grad f`` (the Hessian's
+   eigenvalues are regularised away from 0, keeping their sign, so that saddles are reached too).
+   A step is accepted only if ``|grad f|`` decreases; otherwise the point's trust radius shrinks.
+   The Newton direction is a descent direction of the paper's objective ``|grad f|^2`` (its
+   gradient is ``H grad f``), so with a small enough radius this is gradient descent on
+   ``|grad f|^2`` with a Newton metric: it cannot diverge, and it converges quadratically near the
+   point.
+3. **Removal** of points that leave the domain box, whose trust radius collapsed, or whose
+   ``|grad f|`` stays above the tolerance.
+4. **Clustering** of duplicates with scikit-learn's DBSCAN (``min_samples=1``), per shape: the
+   shape index is appended as an extra coordinate scaled far beyond the merge radius, so one
+   DBSCAN call clusters all shapes without mixing them. Each cluster keeps its member with the
+   smallest ``|grad f|``.
+5. **Classification** by the eigenvalues of the Hessian: the Morse index is the number of
+   negative eigenvalues (0 minimum, ``d`` maximum, otherwise a saddle).
+
+All derivatives come from :mod:`ginn.fields` (no autograd here); everything returned is detached.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+import torch
+from scipy import ndimage
+from sklearn.cluster import DBSCAN
+from torch import Tensor
+
+from ..fields import Field, gradient, hessian
+from ..geometry.base import Box
+from .components import grid_shape
+
+MINIMUM, SADDLE, MAXIMUM = 0, 1, 2
+
+
+@dataclass(frozen=True)
+class CriticalPointOptions:
+    """Numerical settings of the critical-point search (sensible defaults for ``[-1, 1]^d`` boxes).
+
+    Attributes:
+        seed_filter: keep only seeds at grid-local minima of ``|grad f|`` (much cheaper; False
+            starts Newton from every grid seed).
+        jitter: seed jitter as a fraction of a grid cell (uniform in ``±jitter/2``).
+        newton_steps: Newton iterations of a full search.
+        tol: a point has converged when ``|grad f| <= tol``.
+        max_step: largest Newton step as a fraction of a grid cell (initial trust radius).
+        min_step: a point is dropped when its trust radius falls below this fraction of a cell.
+        merge_radius: DBSCAN ``eps`` as a fraction of a grid cell.
+        eig_tol: eigenvalues with ``|lambda| <= eig_tol`` are regularised to ``±eig_tol`` in the
+            Newton step and flag the point as degenerate.
+    """
+
+    seed_filter: bool = True
+    jitter: float = 0.5
+    newton_steps: int = 25
+    tol: float = 1e-4
+    max_step: float = 1.0
+    min_step: float = 1e-4
+    merge_radius: float = 0.1
+    eig_tol: float = 1e-6
+
+
+@dataclass
+class CriticalPoints:
+    """Critical points of all shapes of a batch (detached tensors, ``m`` points).
+
+    Attributes:
+        x: positions ``(m, d)``.
+        shape: index of the shape each point belongs to ``(m,)`` (long).
+        f: values ``(m,)``.
+        grad_norm: ``|grad f|`` ``(m,)``.
+        eigvals: Hessian eigenvalues, ascending ``(m, d)``.
+        eigvecs: matching unit eigenvectors as columns ``(m, d, d)``.
+    """
+
+    x: Tensor
+    shape: Tensor
+    f: Tensor
+    grad_norm: Tensor
+    eigvals: Tensor
+    eigvecs: Tensor
+
+    @property
+    def m(self) -> int:
+        return int(self.x.shape[0])
+
+    @property
+    def dim(self) -> int:
+        return int(self.x.shape[1])
+
+    @property
+    def index(self) -> Tensor:
+        """Morse index (number of negative eigenvalues), ``(m,)`` long."""
+        return (self.eigvals < 0).sum(-1)
+
+    @property
+    def kind(self) -> Tensor:
+        """``MINIMUM`` (0), ``SADDLE`` (1) or ``MAXIMUM`` (2) per point, ``(m,)`` long."""
+        idx = self.index
+        k = torch.full_like(idx, SADDLE)
+        k[idx == 0] = MINIMUM
+        k[idx == self.dim] = MAXIMUM
+        return k
+
+    def degenerate(self, eig_tol: float) -> Tensor:
+        """Boolean ``(m,)``: some Hessian eigenvalue is (numerically) zero."""
+        return self.eigvals.abs().min(-1).values <= eig_tol
+
+    def select(self, mask: Tensor) -> "CriticalPoints":
+        """The subset selected by a boolean mask or an index tensor."""
+        return CriticalPoints(
+            self.x[mask], self.shape[mask], self.f[mask], self.grad_norm[mask], self.eigvals[mask], self.eigvecs[mask]
+        )
+
+    def counts(self, n_shapes: int) -> dict[str, np.ndarray]:
+        """Number of minima, saddles and maxima per shape, each ``(n_shapes,)``."""
+        k = self.kind.cpu().numpy()
+        s = self.shape.cpu().numpy()
+        return {
+            name: np.bincount(s[k == code], minlength=n_shapes)
+            for name, code in (("minima", MINIMUM), ("saddles", SADDLE), ("maxima", MAXIMUM))
+        }
+
+    @staticmethod
+    def empty(d: int, device=None, dtype=torch.float32) -> "CriticalPoints":
+        z = torch.zeros(0, device=device, dtype=dtype)
+        return CriticalPoints(
+            torch.zeros(0, d, device=device, dtype=dtype),
+            torch.zeros(0, dtype=torch.long, device=device),
+            z,
+            z.clone(),
+            torch.zeros(0, d, device=device, dtype=dtype),
+            torch.zeros(0, d, d, device=device, dtype=dtype),
+        )
+
+
+def cell_size(box: Box, grid: int) -> float:
+    """Edge length of one seed-grid cell along the longest axis."""
+    ext = np.asarray(box.hi, dtype=float) - np.asarray(box.lo, dtype=float)
+    return float(ext.max() / grid)
+
+
+def latents_of(Z: Tensor | None, shape: Tensor) -> Tensor | None:
+    """Per-point latent codes ``Z[shape]`` ``(n, k)``, or None for a single latent-free shape."""
+    return None if Z is None else Z[shape]
+
+
+def seed_grid(
+    box: Box,
+    grid: int,
+    n_shapes: int,
+    jitter: float = 0.5,
+    generator: torch.Generator | None = None,
+    device=None,
+    dtype=torch.float32,
+) -> tuple[Tensor, tuple[int, ...]]:
+    """Jittered cell-centred seeds, the same grid pattern for every shape.
+
+    Arguments:
+        box: the domain.
+        grid: cells along the longest axis (the others proportionally, at least 2).
+        n_shapes: ``S``.
+        jitter: jitter amplitude as a fraction of a cell (each seed moves by ``U(-j/2, j/2)`` cells
+            per axis, independently per shape).
+
+    Returns:
+        seeds ``(S, G, d)`` (C order of the cell grid ``shape`` within each shape) and ``shape``.
+    """
+    shape = grid_shape(box, grid)
+    lo = torch.tensor(box.lo, device=device, dtype=dtype)
+    hi = torch.tensor(box.hi, device=device, dtype=dtype)
+    h = (hi - lo) / torch.tensor(shape, device=device, dtype=dtype)
+    axes = [torch.arange(n, device=device, dtype=dtype) + 0.5 for n in shape]
+    cells = torch.stack([m.reshape(-1) for m in torch.meshgrid(*axes, indexing="ij")], dim=-1)  # (G, d)
+    pts = cells.unsqueeze(0).expand(n_shapes, -1, -1)
+    if jitter > 0:
+        u = torch.rand(pts.shape, generator=generator, dtype=dtype).to(device) - 0.5
+        pts = pts + jitter * u
+    return lo + pts * h, shape
+
+
+def filter_seeds(g_norm: Tensor, shape: tuple[int, ...]) -> Tensor:
+    """Seeds at grid-local minima of ``|grad f|`` (3^d neighbourhood, per shape).
+
+    Arguments:
+        g_norm: ``|grad f|`` at the seeds ``(S, G)``.
+        shape: the cell-grid shape (``prod(shape) == G``).
+
+    Returns:
+        boolean mask ``(S, G)``.
+    """
+    a = g_norm.detach().cpu().double().numpy().reshape(g_norm.shape[0], *shape)
+    size = (1,) + (3,) * len(shape)
+    mn = ndimage.minimum_filter(a, size=size, mode="nearest")
+    return torch.from_numpy((a <= mn).reshape(g_norm.shape[0], -1)).to(g_norm.device)
+
+
+def _newton_direction(g: Tensor, H: Tensor, eig_tol: float) -> Tensor:
+    """``-H^{-1} g`` with eigenvalues pushed away from 0 (sign kept), ``(n, d)``."""
+    lam, V = torch.linalg.eigh(H)
+    sign = torch.where(lam < 0, -1.0, 1.0).to(lam.dtype)
+    lam = sign * lam.abs().clamp_min(eig_tol)
+    coef = torch.einsum("nji,nj->ni", V, g) / lam
+    return -torch.einsum("nij,nj->ni", V, coef)
+
+
+@dataclass
+class NewtonResult:
+    """Output of :func:`newton_refine` (detached).
+
+    Attributes:
+        x, f, grad_norm, hessian: final positions ``(n, d)``, values ``(n,)``, ``|grad f|`` ``(n,)``
+            and Hessians ``(n, d, d)``.
+        converged: ``|grad f| <= tol`` and inside the box, ``(n,)``.
+        lost: left the box or the trust radius collapsed, ``(n,)``.
+    """
+
+    x: Tensor
+    f: Tensor
+    grad_norm: Tensor
+    hessian: Tensor
+    converged: Tensor
+    lost: Tensor
+
+
+def newton_refine(
+    field: Field,
+    x: Tensor,
+    z: Tensor | None,
+    box: Box,
+    *,
+    steps: int,
+    tol: float,
+    max_step: float,
+    min_step: float,
+    eig_tol: float = 1e-6,
+) -> NewtonResult:
+    """Converge points to ``grad f = 0`` with trust-region Newton steps (all points at once).
+
+    Arguments:
+        field: ``(x, z) -> (n,)``.
+        x: start points ``(n, d)``; z: their latents ``(n, k)`` or None.
+        box: points leaving it are dropped.
+        steps: iterations (each costs one Hessian evaluation at the still-active points).
+        tol: convergence threshold on ``|grad f|``.
+        max_step: initial and largest trust radius (absolute length).
+        min_step: a point whose radius shrinks below this is given up (``lost``).
+        eig_tol: eigenvalue regularisation of the Newton step.
+
+    Returns:
+        :class:`NewtonResult`.
+    """
+    lo, hi = box.tensors(x.device, x.dtype)
+    x = x.detach().clone()
+    n = x.shape[0]
+    if n == 0:
+        d = x.shape[1]
+        e = torch.zeros(0, dtype=torch.bool, device=x.device)
+        return NewtonResult(x, x.new_zeros(0), x.new_zeros(0), x.new_zeros(0, d, d), e, e.clone())
+    f, g, H = hessian(field, x, z)
+    gn = g.norm(dim=-1)
+    radius = torch.full((n,), float(max_step), dtype=x.dtype, device=x.device)
+    lost = ~box.contains(x)
+    for _ in range(steps):
+        active = (gn > tol) & ~lost
+        idx = torch.nonzero(active, as_tuple=False).squeeze(-1)
+        if idx.numel() == 0:
+            break
+        dx = _newton_direction(g[idx], H[idx], eig_tol)
+        L = dx.norm(dim=-1).clamp_min(1e-30)
+        scale = (radius[idx] / L).clamp(max=1.0)
+        xn = x[idx] + dx * scale[:, None]
+        fn, gn_new, Hn = hessian(field, xn, None if z is None else z[idx])
+        gnn = gn_new.norm(dim=-1)
+        inside = ((xn >= lo) & (xn <= hi)).all(-1)
+        accept = (gnn < gn[idx]) & inside
+        a = idx[accept]
+        x[a], f[a], g[a], H[a], gn[a] = xn[accept], fn[accept], gn_new[accept], Hn[accept], gnn[accept]
+        full = scale[accept] >= 1.0
+        radius[a] = torch.where(full, radius[a], (2 * radius[a]).clamp(max=max_step))
+        r = idx[~accept]
+        radius[r] = radius[r] * 0.25
+        # a rejected step that left the box: the point is heading out of the domain
+        out = idx[~accept & ~inside & (scale >= 1.0)]
+        lost[out] = True
+        lost |= radius < min_step
+    converged = (gn <= tol) & ~lost
+    return NewtonResult(x, f.detach(), gn.detach(), H.detach(), converged, lost)
+
+
+def cluster(x: Tensor, shape: Tensor, grad_norm: Tensor, radius: float) -> Tensor:
+    """Indices of one representative per DBSCAN cluster (per shape), ``(m',)`` long.
+
+    Arguments:
+        x: points ``(m, d)``; shape: their shape indices ``(m,)``; grad_norm: ``|grad f|`` ``(m,)``
+            (the representative is the member with the smallest value).
+        radius: DBSCAN ``eps``.
+    """
+    m = x.shape[0]
+    if m == 0:
+        return torch.zeros(0, dtype=torch.long, device=x.device)
+    xs = x.detach().cpu().double().numpy()
+    span = float(np.ptp(xs, axis=0).max()) + 10 * radius + 1.0
+    aug = np.concatenate([xs, shape.cpu().numpy()[:, None].astype(float) * 10 * span], axis=1)
+    labels = DBSCAN(eps=radius, min_samples=1).fit(aug).labels_
+    order = np.lexsort((grad_norm.detach().cpu().double().numpy(), labels))  # by label, then |g|
+    first = np.ones(m, dtype=bool)
+    first[1:] = labels[order][1:] != labels[order][:-1]
+    keep = np.sort(order[first])
+    return torch.from_numpy(keep).to(x.device)
+
+
+def classify(x: Tensor, shape: Tensor, f: Tensor, grad_norm: Tensor, H: Tensor) -> CriticalPoints:
+    """Eigen-decompose the Hessians ``(m, d, d)`` and pack a :class:`CriticalPoints`."""
+    lam, V = torch.linalg.eigh(H)
+    return CriticalPoints(x, shape, f, grad_norm, lam, V)
+
+
+def find_critical_points(
+    field: Field,
+    Z: Tensor | None,
+    box: Box,
+    grid: int = 16,
+    previous: CriticalPoints | None = None,
+    options: CriticalPointOptions = CriticalPointOptions(),
+    generator: torch.Generator | None = None,
+    device=None,
+    dtype=torch.float32,
+) -> CriticalPoints:
+    """All critical points of every shape of a batch.
+
+    Arguments:
+        field: ``(x, z) -> (n,)`` (a model or an analytic field).
+        Z: latent codes ``(S, k)`` or None (a single shape).
+        box: the domain X.
+        grid: seed cells along the longest axis.
+        previous: critical points of an earlier step, added to the seeds (warm start).
+        options: numerical settings.
+        generator: for the seed jitter.
+        device, dtype: of the seeds (taken from ``Z`` when given).
+
+    Returns:
+        :class:`CriticalPoints`, sorted by shape.
+    """
+    if Z is not None:
+        device, dtype = Z.device, Z.dtype
+    S = 1 if Z is None else Z.shape[0]
+    h = cell_size(box, grid)
+    seeds, gshape = seed_grid(box, grid, S, options.jitter, generator, device, dtype)
+    G = seeds.shape[1]
+    sh = torch.arange(S, device=device).repeat_interleave(G)
+    x = seeds.reshape(S * G, -1)
+    if options.seed_filter:
+        _, g = gradient(field, x, latents_of(Z, sh))
+        keep = filter_seeds(g.norm(dim=-1).reshape(S, G), gshape).reshape(-1)
+        x, sh = x[keep], sh[keep]
+    if previous is not None and previous.m > 0:
+        ok = previous.shape < S
+        x = torch.cat([x, previous.x[ok].to(device=device, dtype=dtype)])
+        sh = torch.cat([sh, previous.shape[ok].to(device)])
+    res = newton_refine(
+        field,
+        x,
+        latents_of(Z, sh),
+        box,
+        steps=options.newton_steps,
+        tol=options.tol,
+        max_step=options.max_step * h,
+        min_step=options.min_step * h,
+        eig_tol=options.eig_tol,
+    )
+    c = res.converged
+    keep = cluster(res.x[c], sh[c], res.grad_norm[c], options.merge_radius * h)
+    sel = torch.nonzero(c, as_tuple=False).squeeze(-1)[keep]
+    sel = sel[torch.argsort(sh[sel], stable=True)]
+    return classify(res.x[sel], sh[sel], res.f[sel], res.grad_norm[sel], res.hessian[sel])
+
+
+def reconverge(
+    field: Field,
+    Z: Tensor | None,
+    box: Box,
+    points: CriticalPoints,
+    grid: int,
+    steps: int,
+    options: CriticalPointOptions = CriticalPointOptions(),
+) -> tuple[CriticalPoints, bool]:
+    """Warm update: a few Newton steps from the stored points on the current field.
+
+    Returns:
+        the updated points and ``ok``: every point converged, stayed in the box, kept its Morse
+        index, and no two points of a shape merged. When ``ok`` is False the caller should run a
+        full :func:`find_critical_points`.
+    """
+    h = cell_size(box, grid)
+    if points.m == 0:
+        return points, True
+    res = newton_refine(
+        field,
+        points.x,
+        latents_of(Z, points.shape),
+        box,
+        steps=steps,
+        tol=options.tol,
+        max_step=options.max_step * h,
+        min_step=options.min_step * h,
+        eig_tol=options.eig_tol,
+    )
+    new = classify(res.x, points.shape, res.f, res.grad_norm, res.hessian)
+    ok = bool(res.converged.all()) and bool((new.index == points.index).all())
+    if ok:
+        ok = cluster(new.x, new.shape, new.grad_norm, options.merge_radius * h).numel() == new.m
+    return new, ok
+
+
+def with_values(points: CriticalPoints, f: Tensor) -> CriticalPoints:
+    """A copy with new values ``f`` ``(m,)``."""
+    return replace(points, f=f)
