@@ -1,0 +1,172 @@
+"""Appendix B.1 metrics against exact answers (exact SDFs in float64)."""
+
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from _shapes import Circle, Disk, Rect, VerticalSegments, union
+from ginn.evaluation import evaluate_shapes, format_comparison_table, format_table
+from ginn.fields import as_field
+from ginn.geometry.base import Box
+from ginn.metrics import METRIC_NAMES, diversity_from_matrix, diversity_mean, extract_shape
+from ginn.problems.problem import Problem
+from ginn.surface import make_grid
+
+BOX2 = Box((-1.0, -1.0), (1.0, 1.0))
+E2 = Rect((-0.9, -0.9), (0.9, 0.9))  # vol(E) = 3.24
+
+
+def problem(**kw):
+    kw.setdefault("design_region", E2)
+    return Problem("test", BOX2, **kw)
+
+
+def test_disk_inside_design_region():
+    r = evaluate_shapes(as_field(Disk((0.1, 0.0), 0.4).sdf), None, problem(), 128)
+    s = r["shapes"][0]
+    assert s["b0"] == 1 and s["b0_in_design_region"] == 1
+    assert s["volume_outside"] == 0.0
+    assert s["boundary_overlap"] == 0.0
+    assert s["disconnected_volume"] == 0.0 and s["disconnected_volume_in_design_region"] == 0.0
+    assert s["interface_cd1"] is None and s["connected_interfaces_share"] is None
+    assert r["n_shapes"] == 1 and r["diversity_mean"] is None
+    assert set(s) == set(METRIC_NAMES) and set(r["mean"]) == set(METRIC_NAMES)
+
+
+def test_two_disks_b0_and_disconnected_volume():
+    r1, r2 = 0.3, 0.15
+    f = union(Disk((-0.4, 0.0), r1).sdf, Disk((0.5, 0.3), r2).sdf)
+    res = 256
+    s = evaluate_shapes(f, None, problem(), res)["shapes"][0]
+    assert s["b0"] == 2 and s["b0_in_design_region"] == 2
+    exact = math.pi * r2**2 / 3.24
+    # Grid tolerance: only nodes whose (h x h) quadrature cell meets the circle can be miscounted,
+    # and those cells lie in an annulus of half-width h/sqrt(2) around it: |error| <= 2 pi r2 sqrt(2) h.
+    h = 2 / res
+    tol = 2 * math.pi * r2 * math.sqrt(2) * h / 3.24
+    assert abs(s["disconnected_volume"] - exact) <= tol
+    assert abs(s["disconnected_volume"] - exact) / exact < 0.01  # what is actually measured
+    assert s["disconnected_volume_in_design_region"] == pytest.approx(s["disconnected_volume"])
+
+
+def test_volume_outside_of_a_disk_crossing_the_design_region():
+    # E = the left half x <= 0; a disk of radius 0.4 at the origin: half of it is outside E.
+    P = problem(design_region=Rect((-1.0, -1.0), (0.0, 1.0)))
+    s = evaluate_shapes(as_field(Disk((0.0, 0.0), 0.4).sdf), None, P, 256)["shapes"][0]
+    assert s["volume_outside"] == pytest.approx((math.pi * 0.16 / 2) / 2.0, rel=0.01)
+    assert s["b0_in_design_region"] == 1
+
+
+def test_interface_cd1_concentric_circles():
+    r1, r2 = 0.5, 0.3
+    s = evaluate_shapes(as_field(Disk((0.0, 0.0), r1).sdf), None, problem(interfaces=(Circle(r2),)), 256)["shapes"][0]
+    assert s["interface_cd1"] == pytest.approx(abs(r1 - r2), abs=1e-3)
+    s = evaluate_shapes(as_field(Disk((0.0, 0.0), r1).sdf), None, problem(interfaces=(Circle(r1),)), 256)["shapes"][0]
+    assert s["interface_cd1"] < 1e-4
+
+
+def test_boundary_overlap_strip_crossing_a_disk_design_region():
+    # E = disk of radius R; Omega = the strip |y| <= w: Omega cap dE = two arcs of angle 2 asin(w/R).
+    R, w = 0.8, 0.2
+    P = Problem("t", BOX2, design_region=Disk((0.0, 0.0), R))
+    strip = lambda x, z=None: x[:, 1].abs() - w
+    s = evaluate_shapes(strip, None, P, 256)["shapes"][0]
+    exact = 4 * math.asin(w / R) / (2 * math.pi)
+    assert s["boundary_overlap"] == pytest.approx(exact, abs=0.01)
+
+
+def test_boundary_overlap_strip_crossing_a_rectangle_design_region():
+    # E = [-0.9, 0.9] x [-0.4, 0.4] (perimeter 5.2); the strip |y| <= 0.1 covers 2 x 0.2 of it.
+    P = Problem("t", Box((-1.0, -0.5), (1.0, 0.5)), design_region=Rect((-0.9, -0.4), (0.9, 0.4)))
+    strip = lambda x, z=None: x[:, 1].abs() - 0.1
+    s = evaluate_shapes(strip, None, P, 256)["shapes"][0]
+    assert s["boundary_overlap"] == pytest.approx(0.4 / 5.2, abs=0.005)
+    # and the volume outside: the strip outside E is 2 x (0.1 x 0.2) of vol(X \ E) = 2 - 1.44
+    # node counting moves each straight edge of the two 0.1 x 0.2 pieces by at most h / 2
+    h = 1 / 128
+    assert s["volume_outside"] == pytest.approx(0.04 / 0.56, abs=2 * 0.6 * (h / 2) / 0.56)
+
+
+def test_connected_interfaces_share():
+    itf = VerticalSegments([-0.5, 0.5], 0.2)
+    P = problem(interfaces=(itf,))
+    bar = as_field(Rect((-0.5, -0.3), (0.5, 0.3)).sdf)  # both segments on its boundary
+    s = evaluate_shapes(bar, None, P, 128)["shapes"][0]
+    assert s["connected_interfaces_share"] == 1.0
+    assert s["interface_cd1"] < 1e-3
+    two = union(Disk((-0.5, 0.0), 0.3).sdf, Disk((0.55, 0.0), 0.1).sdf)  # one interface each
+    s = evaluate_shapes(two, None, P, 128)["shapes"][0]
+    assert s["b0"] == 2 and s["connected_interfaces_share"] == 0.5
+    # a segment within eps = 0.01 of a component counts; one 0.05 away does not
+    near = union(Rect((-0.505, -0.3), (0.495, 0.3)).sdf)
+    assert evaluate_shapes(near, None, P, 256)["shapes"][0]["connected_interfaces_share"] == 1.0
+    far = union(Rect((-0.5, -0.3), (0.45, 0.3)).sdf)
+    assert evaluate_shapes(far, None, P, 256)["shapes"][0]["connected_interfaces_share"] == 0.5
+
+
+def test_surface_strain_sphere_and_circle():
+    r = 0.5
+    P3 = Problem("t", Box((-1.0, -1.0, -1.0), (1.0, 1.0, 1.0)))
+    s = evaluate_shapes(as_field(Disk((0.0, 0.0, 0.0), r).sdf), None, P3, 32)["shapes"][0]
+    assert s["surface_strain"] == pytest.approx(2 / r**2, rel=1e-6)
+    assert s["b0"] == 1 and s["volume_outside"] == 0.0
+    s = evaluate_shapes(as_field(Disk((0.0, 0.0), 0.25).sdf), None, problem(), 64)["shapes"][0]
+    assert s["surface_strain"] == pytest.approx(1 / 0.25**2, rel=1e-6)
+    # tiny circles are clipped at 1000
+    s = evaluate_shapes(as_field(Disk((0.0, 0.0), 0.02).sdf), None, problem(), 256)["shapes"][0]
+    assert s["surface_strain"] == 1000.0
+
+
+def radial_family(radii):
+    """Concentric circles: shape i is the disk of radius radii[i] (latent z = i)."""
+    rr = torch.tensor(radii, dtype=torch.float64)
+
+    def f(x, z):
+        return x.norm(dim=-1) - rr[z[:, 0].round().long()]
+
+    return f
+
+
+def test_diversity_identical_shapes_is_zero():
+    f = radial_family([0.4, 0.4, 0.4])
+    Z = torch.arange(3, dtype=torch.float64)[:, None]
+    r = evaluate_shapes(f, Z, problem(), 128)
+    assert r["n_shapes"] == 3 and len(r["shapes"]) == 3
+    assert r["diversity_mean"] == pytest.approx(0.0, abs=1e-9)
+
+
+def test_diversity_concentric_circles_closed_form():
+    radii = [0.2, 0.35, 0.6]
+    f = radial_family(radii)
+    Z = torch.arange(3, dtype=torch.float64)[:, None]
+    r = evaluate_shapes(f, Z, problem(), 256)
+    # CD1 between concentric circles is |ri - rj| both ways, so CD2 = sqrt(2) |ri - rj|.
+    D = np.sqrt(2) * np.abs(np.subtract.outer(radii, radii))
+    exact = np.mean(np.sqrt(D.sum(1) / 2)) ** 2
+    assert r["diversity_mean"] == pytest.approx(exact, abs=1e-3)
+    assert diversity_from_matrix(D) == pytest.approx(exact)
+    # two shapes: delta = CD2
+    assert diversity_from_matrix(D[:2, :2]) == pytest.approx(np.sqrt(2) * 0.15)
+    # the per-shape means are averages of the per-shape values
+    assert r["mean"]["surface_strain"] == pytest.approx(np.mean([1 / q**2 for q in radii]), rel=1e-6)
+
+
+def test_diversity_mean_function_and_single_shape():
+    g = make_grid(BOX2, 64)
+    b1 = extract_shape(as_field(Disk((0.0, 0.0), 0.3).sdf), None, g).boundary
+    b2 = extract_shape(as_field(Disk((0.0, 0.0), 0.5).sdf), None, g).boundary
+    assert diversity_mean([b1]) is None
+    assert diversity_mean([b1, b2]) == pytest.approx(np.sqrt(2) * 0.2, abs=2e-3)
+
+
+def test_tables():
+    r = evaluate_shapes(as_field(Disk((0.0, 0.0), 0.4).sdf), None, problem(interfaces=(Circle(0.4),)), 64)
+    t = format_table(r)
+    assert "CD1" in t and t.count("\n") == 3 + len(METRIC_NAMES) + 1
+    c = format_comparison_table([r, r], ["a", "b"])
+    assert c.splitlines()[0] == "| metric | a | b |"
+    assert len(c.splitlines()) == 3 + len(METRIC_NAMES) + 1
+    with pytest.raises(ValueError):
+        format_comparison_table([r], ["a", "b"])
