@@ -27,6 +27,11 @@ class Region(abc.ABC):
         """Boolean ``(n,)``: is each point inside (``sdf <= 0``)?"""
         return self.sdf(x) <= 0
 
+    def bounds(self) -> tuple[Tensor, Tensor] | None:
+        """An axis-aligned box ``(lo, hi)`` (float64, ``(d,)`` each) containing the region, or None
+        when the region is unbounded or the bound is unknown."""
+        return None
+
 
 class Interface(abc.ABC):
     """A (d-1)-dimensional set the shape's boundary must pass through, optionally with normals.
@@ -37,6 +42,8 @@ class Interface(abc.ABC):
 
     dim: int
     has_normals: bool = True
+    #: corner points ``(c, d)`` (float64) the trainer may weight higher (polyline vertices), or None
+    corners: Tensor | None = None
 
     @abc.abstractmethod
     def sample(
@@ -56,6 +63,14 @@ class Interface(abc.ABC):
     def component_of(self, x: Tensor) -> Tensor:
         """Component index ``(n,)`` of points lying on the interface (default: all 0)."""
         return torch.zeros(x.shape[0], dtype=torch.long, device=x.device)
+
+    def distance(self, x: Tensor) -> Tensor:
+        """Unsigned distance ``(n, d) -> (n,)`` from each point to the interface."""
+        raise NotImplementedError(f"{type(self).__name__} does not implement distance()")
+
+    def bounds(self) -> tuple[Tensor, Tensor] | None:
+        """An axis-aligned box ``(lo, hi)`` (float64, ``(d,)`` each) containing the interface."""
+        return None
 
 
 @dataclass(frozen=True)
