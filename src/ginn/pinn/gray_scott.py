@@ -1,0 +1,268 @@
+"""The generative PINN for stationary Gray-Scott Turing patterns (paper Section 4.3, Appendix A.6).
+
+Model: :class:`GrayScottField`, two networks (one for ``u``, one for ``v``), each conditioned on a
+latent code by concatenation, on the periodic unit square through the encoding
+``x_i -> (sin 2 pi x_i, cos 2 pi x_i)``; called as ``model(x, z)`` it returns ``(n, 2)`` = ``(u, v)``.
+
+Losses (all latents in one batched forward pass on one shared grid):
+
+* ``residual``: ``mean(R_u^2) + mean(R_v^2)`` of the stationary equation 3, derivatives by periodic
+  finite differences on an ``N x N`` grid (paper: 64) randomly translated every iteration
+  (``params.derivatives``: ``fd`` (default), ``spectral`` (FFT on the same grid) or ``autograd``
+  (through :func:`ginn.fields.evaluate`, an order of magnitude slower)).
+* ``gradient``: the reward ``-mean_s min(cap, mean_x (|grad u|^2 + |grad v|^2))`` per latent ``s``.
+  The paper prints ``-max(1, ...)``, which is constant (no gradient) below 1 and unbounded above; we
+  read it as the cap ``min(1, ...)``: it pushes a pattern away from the uniform state until its mean
+  squared gradient reaches ``cap`` (1) and then stops acting, so it cannot grow without bound.
+* ``diversity``: ``-delta`` with the minimal aggregation of Appendix E
+  (:func:`ginn.losses.diversity.aggregate_min`, exponent ``cfg.diversity.p``) of a distance between
+  the sampled patterns of different latents. Patterns are fields, not shapes, so the distance is a
+  field distance of ``v`` on the shared grid: ``params.diversity_distance = "rms"`` (the RMS
+  difference ``sqrt(mean_x (v_i - v_j)^2)``) or ``"shift"`` (its minimum over the grid's periodic
+  translations, computed by FFT cross-correlation; two translated copies of a pattern have distance 0).
+
+Weights (paper): residual 1, gradient 1e-4, diversity 1e-7; they live in ``cfg.params.losses``.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+import torch
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from torch import Tensor, nn
+
+from ..errors import ConfigError
+from ..fields import evaluate, laplacian
+from ..losses.diversity import aggregate
+from ..models import FourierMLP, PeriodicEncoding, Siren
+from ..train.config import LossTerm, RunConfig
+from ..train.task import Task
+from .finite_diff import grid_derivatives, grid_points
+from .solver import GSParams
+
+
+class GrayScottLosses(BaseModel):
+    """Weights and start iterations of the three loss terms."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    residual: LossTerm = LossTerm(weight=1.0)
+    gradient: LossTerm = LossTerm(weight=1e-4)
+    diversity: LossTerm = LossTerm(weight=1e-7)
+
+
+class GrayScottParams(BaseModel):
+    """``cfg.params`` of a gray-scott run (validated by :func:`parse_params`)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    D_v: float = Field(1.2e-5, gt=0, description="diffusion coefficient of v")
+    D_u: float | None = Field(None, gt=0, description="diffusion coefficient of u (None: 2 D_v)")
+    alpha: float = Field(0.028, gt=0, description="feed rate")
+    beta: float = Field(0.057, gt=0, description="kill rate")
+    grid: int = Field(64, ge=8, description="training grid points per axis")
+    translate: bool = Field(True, description="translate the training grid randomly every iteration")
+    derivatives: Literal["fd", "spectral", "autograd"] = "fd"
+    gradient_cap: float = Field(1.0, gt=0, description="the gradient reward saturates at this mean |grad|^2")
+    diversity_distance: Literal["rms", "shift"] = "rms"
+    u_offset: float = Field(0.0, description="u = u_offset + network output (0: the paper's raw output)")
+    v_offset: float = Field(0.0, description="v = v_offset + network output")
+    losses: GrayScottLosses = GrayScottLosses()
+    resolution: int = Field(256, ge=8, description="resolution of the written fields and pictures")
+    n_interpolation: int = Field(8, ge=2, description="patterns in the latent interpolation strip")
+
+    @property
+    def gs(self) -> GSParams:
+        return GSParams(D_v=self.D_v, D_u=self.D_u if self.D_u is not None else 2.0 * self.D_v,
+                        alpha=self.alpha, beta=self.beta)
+
+
+def parse_params(params: dict) -> GrayScottParams:
+    """Validate ``cfg.params``; raises :class:`ConfigError` with one line naming the bad key."""
+    try:
+        return GrayScottParams.model_validate(params or {})
+    except ValidationError as e:
+        err = e.errors()[0]
+        path = ".".join(str(p) for p in err.get("loc", ()))
+        msg = "unknown key" if err.get("type") == "extra_forbidden" else err.get("msg", "invalid value")
+        raise ConfigError(f"config field 'params.{path}': {msg}") from None
+
+
+class GrayScottField(nn.Module):
+    """``(u, v)`` of every latent: two networks ``model.u``, ``model.v``, each ``(x, z) -> (n,)``.
+
+    ``forward(x (n, 2), z (n, k)) -> (n, 2)`` with columns ``u, v`` (offsets added).
+    """
+
+    def __init__(self, u: nn.Module, v: nn.Module, u_offset: float = 0.0, v_offset: float = 0.0):
+        super().__init__()
+        self.u, self.v = u, v
+        self.u_offset, self.v_offset = float(u_offset), float(v_offset)
+
+    def field_u(self, x: Tensor, z: Tensor | None) -> Tensor:
+        return self.u(x, z) + self.u_offset
+
+    def field_v(self, x: Tensor, z: Tensor | None) -> Tensor:
+        return self.v(x, z) + self.v_offset
+
+    def forward(self, x: Tensor, z: Tensor | None = None) -> Tensor:
+        return torch.stack([self.field_u(x, z), self.field_v(x, z)], dim=-1)
+
+
+def build_field(cfg: RunConfig, params: GrayScottParams) -> GrayScottField:
+    """Two identical networks per ``cfg.model`` (``siren`` or ``fourier``), periodic encoding always on."""
+    k = cfg.latents.dim if cfg.latents.n_shapes > 1 or cfg.latents.random else 0
+    m = cfg.model
+
+    def one() -> nn.Module:
+        if m.kind == "siren":
+            return Siren(2, m.hidden, latent_dim=k, w0_first=m.w0_first, w0_hidden=m.w0_hidden,
+                         encoding=PeriodicEncoding())
+        if m.kind == "fourier":
+            return FourierMLP(2, m.hidden, latent_dim=k, sigma=m.sigma, n_features=m.n_features,
+                              activation=m.activation, beta=m.beta, pre_encoding=PeriodicEncoding())
+        raise ConfigError(f"config field 'model.kind': {m.kind!r} is not supported by gray-scott (siren, fourier)")
+
+    return GrayScottField(one(), one(), params.u_offset, params.v_offset)
+
+
+def fixed_latents(n: int, dim: int, low: float, high: float, seed: int) -> Tensor:
+    """The trained latent codes ``(n, dim)``: evenly spaced for ``dim == 1``, else uniform with ``seed``."""
+    if dim == 1:
+        return torch.linspace(low, high, n, dtype=torch.float64)[:, None]
+    g = torch.Generator().manual_seed(seed + 7919)
+    return low + (high - low) * torch.rand(n, dim, generator=g, dtype=torch.float64)
+
+
+def sample_grid(model: GrayScottField, Z: Tensor, n: int, offset: Tensor | None = None) -> Tensor:
+    """All latents on one shared grid in one forward pass: ``(S, 2, n, n)`` (channel 0 u, 1 v)."""
+    S = Z.shape[0]
+    X = grid_points(n, offset, dtype=Z.dtype, device=Z.device).reshape(-1, 2)
+    x = X[None].expand(S, -1, -1).reshape(-1, 2)
+    z = Z[:, None, :].expand(S, n * n, Z.shape[-1]).reshape(-1, Z.shape[-1])
+    out = model(x, z)
+    return out.reshape(S, n, n, 2).permute(0, 3, 1, 2)
+
+
+def shift_invariant_sq_distance(A: Tensor, B: Tensor) -> Tensor:
+    """``min over periodic grid shifts s of mean_x (A(x) - B(x + s))^2``, batched.
+
+    Arguments:
+        A: ``(S, n, n)``; B: ``(T, n, n)``.
+
+    Returns:
+        ``(S, T)``: ``mean A^2 + mean B^2 - 2 max_s corr(A, B)(s)`` (FFT cross-correlation).
+    """
+    n2 = A.shape[-1] * A.shape[-2]
+    Ah, Bh = torch.fft.fft2(A), torch.fft.fft2(B)
+    corr = torch.fft.ifft2(Ah[:, None].conj() * Bh[None, :]).real / n2  # (S, T, n, n)
+    best = corr.flatten(-2).max(dim=-1).values
+    a2 = (A * A).mean(dim=(-2, -1))
+    b2 = (B * B).mean(dim=(-2, -1))
+    return (a2[:, None] + b2[None, :] - 2.0 * best).clamp_min(0.0)
+
+
+def pattern_distance(V: Tensor, kind: str) -> Tensor:
+    """Distance matrix ``(S, S)`` between patterns ``V (S, n, n)`` (``rms`` or ``shift``)."""
+    if kind == "rms":
+        diff = V[:, None] - V[None, :]
+        return (diff * diff).mean(dim=(-2, -1)).clamp_min(1e-12).sqrt()
+    if kind == "shift":
+        return shift_invariant_sq_distance(V, V).clamp_min(1e-12).sqrt()
+    raise ValueError(f"unknown pattern distance {kind!r} (rms, shift)")
+
+
+class GrayScottTask(Task):
+    """Generative PINN for stationary Gray-Scott patterns (see the module docstring)."""
+
+    kind = "gray-scott"
+
+    def __init__(self, cfg: RunConfig, device: torch.device, dtype: torch.dtype):
+        super().__init__(cfg, device, dtype)
+        self.params = parse_params(cfg.params)
+        lat = cfg.latents
+        if lat.n_shapes > 1 and not lat.random:
+            self.Z = fixed_latents(lat.n_shapes, lat.dim, lat.low, lat.high, cfg.seed).to(device=self.device, dtype=dtype)
+        else:
+            self.Z = None
+
+    # --- Task interface -------------------------------------------------------------------------
+
+    def build_model(self) -> nn.Module:
+        return build_field(self.cfg, self.params).to(device=self.device, dtype=self.dtype)
+
+    def terms(self) -> dict[str, LossTerm]:
+        L = self.params.losses
+        return {"residual": L.residual, "gradient": L.gradient, "diversity": L.diversity}
+
+    def latents(self) -> Tensor | None:
+        return self.Z
+
+    def _batch_latents(self, gen: torch.Generator) -> Tensor:
+        lat = self.cfg.latents
+        if self.Z is not None:
+            return self.Z
+        if lat.random:
+            r = torch.rand(lat.n_shapes, lat.dim, generator=gen, dtype=self.dtype)
+            return (lat.low + (lat.high - lat.low) * r).to(self.device)
+        return torch.zeros(1, 0, dtype=self.dtype, device=self.device)
+
+    def fields_and_derivatives(self, model: GrayScottField, Z: Tensor, offset: Tensor | None) -> tuple[Tensor, Tensor, Tensor]:
+        """``W (S, 2, n, n)``, gradients ``(S, 2, 2, n, n)`` (field, axis) and Laplacians ``(S, 2, n, n)``."""
+        n = self.params.grid
+        if self.params.derivatives in ("fd", "spectral"):
+            W = sample_grid(model, Z, n, offset)
+            G, Lap = grid_derivatives(W, self.params.derivatives)
+            return W, G, Lap
+        S, k = Z.shape
+        X = grid_points(n, offset, dtype=self.dtype, device=self.device).reshape(-1, 2)
+        x = X[None].expand(S, -1, -1).reshape(-1, 2)
+        z = Z[:, None, :].expand(S, n * n, k).reshape(-1, k)
+        outs = []
+        for f in (model.field_u, model.field_v):
+            fv = evaluate(f, x, z, grad=False, hessian_at=True, create_graph=True)
+            outs.append((fv.f, fv.hessian_grad, laplacian(fv.hessian)))
+        W = torch.stack([o[0] for o in outs]).reshape(2, S, n, n).transpose(0, 1)
+        G = torch.stack([o[1] for o in outs]).reshape(2, S, n, n, 2).permute(1, 0, 4, 2, 3)
+        Lap = torch.stack([o[2] for o in outs]).reshape(2, S, n, n).transpose(0, 1)
+        return W, G, Lap
+
+    def loss_terms(self, model: nn.Module, step: int, active: set[str], gen: torch.Generator) -> dict[str, Tensor]:
+        p, gs = self.params, self.params.gs
+        Z = self._batch_latents(gen)
+        offset = torch.rand(2, generator=gen, dtype=self.dtype).to(self.device) if p.translate else None
+        W, G, Lap = self.fields_and_derivatives(model, Z, offset)
+        u, v = W[:, 0], W[:, 1]
+        uvv = u * v * v
+        Ru = gs.D_u * Lap[:, 0] - uvv + gs.alpha * (1.0 - u)
+        Rv = gs.D_v * Lap[:, 1] + uvv - (gs.alpha + gs.beta) * v
+        out: dict[str, Tensor] = {}
+        res = (Ru * Ru).mean() + (Rv * Rv).mean()
+        if "residual" in active:
+            out["residual"] = res
+        g2 = (G * G).sum(dim=(1, 2)).mean(dim=(-2, -1))  # (S,)
+        if "gradient" in active:
+            out["gradient"] = -torch.clamp(g2, max=p.gradient_cap).mean()
+        if "diversity" in active and Z.shape[0] > 1:
+            D = pattern_distance(v, p.diversity_distance)
+            out["diversity"] = -aggregate(D, self.cfg.diversity.aggregation, self.cfg.diversity.p)
+        with torch.no_grad():
+            out["_residual"] = res.detach()
+            out["_std_v"] = v.std(dim=(-2, -1)).mean().detach()
+            out["_grad2"] = g2.mean().detach()
+        return out
+
+    def finalize(self, model: nn.Module, run_dir: Path) -> list[Path]:
+        from .plots import write_patterns
+
+        Z = self.Z if self.Z is not None else self._default_latents()
+        return write_patterns(model, Z, Path(run_dir), self.params.resolution, self.params.n_interpolation)
+
+    def _default_latents(self) -> Tensor:
+        lat = self.cfg.latents
+        k = lat.dim if (lat.n_shapes > 1 or lat.random) else 0
+        if k == 0:
+            return torch.zeros(1, 0, dtype=self.dtype, device=self.device)
+        return fixed_latents(max(lat.n_shapes, 2), k, lat.low, lat.high, self.cfg.seed).to(self.device, self.dtype)
