@@ -433,6 +433,36 @@ class Boundary:
             V[E[:, 0]] * (1 - s)[:, None] + V[E[:, 1]] * (s * (1 - r2))[:, None] + V[E[:, 2]] * (s * r2)[:, None]
         )
 
+    def polylines(self) -> list[np.ndarray]:
+        """2D only: the boundary as polylines ``[(k_i, 2)]``, closed ones repeating their first
+        vertex at the end (walks the segments of each component in order)."""
+        if self.dim != 2:
+            raise ValueError("polylines are for 2D boundaries")
+        out = []
+        E = self.elements
+        if E.shape[0] == 0:
+            return out
+        nxt = np.full(self.vertices.shape[0], -1, dtype=np.int64)
+        nxt[E[:, 0]] = E[:, 1]
+        has_prev = np.zeros(self.vertices.shape[0], dtype=bool)
+        has_prev[E[:, 1]] = True
+        seen = np.zeros(self.vertices.shape[0], dtype=bool)
+        starts = [v for v in E[:, 0] if not has_prev[v]] + list(E[:, 0])  # open chains first
+        for s0 in starts:
+            if seen[s0]:
+                continue
+            chain = [s0]
+            seen[s0] = True
+            v = nxt[s0]
+            while v >= 0 and not seen[v]:
+                chain.append(v)
+                seen[v] = True
+                v = nxt[v]
+            if v == s0:
+                chain.append(s0)
+            out.append(self.vertices[np.asarray(chain)])
+        return out
+
     def centroid_tree(self) -> cKDTree:
         if self._tree is None:
             self._tree = cKDTree(self.vertices[self.elements].mean(axis=1))
