@@ -1,0 +1,102 @@
+"""Topology subsystem: critical points, surface network, connectedness losses, b0 on grids.
+
+Front door for the trainer::
+
+    loss_fn = make_connectedness_loss(problem.domain, problem.design_region, config.connectedness,
+                                      device=device, dtype=dtype)
+    l = loss_fn(model, Z)          # scalar tensor; loss_fn.last_info holds diagnostics
+    state = loss_fn.state_dict()   # tensors only; loss_fn.load_state_dict(state)
+
+See docs/connectedness.md.
+"""
+
+from __future__ import annotations
+
+import torch
+
+from ..geometry.base import Box, Region
+from .components import (
+    b0,
+    b0_of_mask,
+    component_sizes,
+    count_components,
+    field_on_grid,
+    grid_points,
+    grid_shape,
+    label_components,
+)
+from .connectedness import ConnectednessLoss, Penalties, SurfaceNetworkLossOptions, saddle_penalties, shape_components
+from .critical import (
+    MAXIMUM,
+    MINIMUM,
+    SADDLE,
+    CriticalPointOptions,
+    CriticalPoints,
+    find_critical_points,
+    newton_refine,
+    reconverge,
+)
+from .persistent import DeathPoints, PersistenceOptions, PersistentHomologyLoss, death_points
+from .surface_network import PathOptions, SurfaceNetwork, trace_surface_network
+
+
+def make_connectedness_loss(
+    domain: Box,
+    design_region: Region | None,
+    config,
+    device=None,
+    dtype=torch.float32,
+    options=None,
+) -> ConnectednessLoss | PersistentHomologyLoss:
+    """The connectedness loss selected by ``config.method``.
+
+    Arguments:
+        domain: the box X.
+        design_region: the design region E, or None.
+        config: :class:`ginn.train.config.ConnectednessConfig`.
+        device, dtype: of the field.
+        options: :class:`SurfaceNetworkLossOptions` or :class:`PersistenceOptions` (defaults
+            when None).
+
+    Returns:
+        a callable ``loss_fn(field, Z) -> scalar tensor`` with ``state_dict``,
+        ``load_state_dict`` and ``last_info``.
+    """
+    if config.method == "surface-network":
+        return ConnectednessLoss(domain, design_region, config, device, dtype, options)
+    if config.method == "persistent-homology":
+        return PersistentHomologyLoss(domain, design_region, config, device, dtype, options)
+    raise ValueError(f"unknown connectedness method {config.method!r}")
+
+
+__all__ = [
+    "make_connectedness_loss",
+    "ConnectednessLoss",
+    "PersistentHomologyLoss",
+    "SurfaceNetworkLossOptions",
+    "PersistenceOptions",
+    "CriticalPointOptions",
+    "PathOptions",
+    "CriticalPoints",
+    "SurfaceNetwork",
+    "Penalties",
+    "DeathPoints",
+    "MINIMUM",
+    "SADDLE",
+    "MAXIMUM",
+    "find_critical_points",
+    "newton_refine",
+    "reconverge",
+    "trace_surface_network",
+    "saddle_penalties",
+    "shape_components",
+    "death_points",
+    "label_components",
+    "b0_of_mask",
+    "component_sizes",
+    "count_components",
+    "field_on_grid",
+    "grid_points",
+    "grid_shape",
+    "b0",
+]

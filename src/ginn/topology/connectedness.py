@@ -50,6 +50,7 @@ from scipy.sparse import csgraph
 from torch import Tensor
 
 from ..geometry.base import Box, Region
+from .components import field_on_grid, label_components
 from .critical import (
     MINIMUM,
     SADDLE,
@@ -70,12 +71,17 @@ class SurfaceNetworkLossOptions:
         critical: critical-point search settings.
         paths: integral-path settings.
         warm_steps: Newton steps of a warm update.
+        label_grid: the components are also labelled on a vertex grid of ``label_grid *
+            config.grid`` nodes along the longest axis (one batched forward pass, no
+            derivatives), which finds components that touch the domain or design-region boundary
+            (they have no interior minimum); 0 uses the surface network alone.
         seed: seed of the generator of the seed-grid jitter.
     """
 
     critical: CriticalPointOptions = dc_field(default_factory=CriticalPointOptions)
     paths: PathOptions = dc_field(default_factory=PathOptions)
     warm_steps: int = 3
+    label_grid: int = 2
     seed: int = 0
 
 
@@ -85,7 +91,7 @@ class Penalties:
 
     Attributes:
         weights: normalised penalty per vertex ``(m,)`` (zeros when the shape is connected).
-        n_components: number of components of the shape found among the vertices.
+        n_components: number of components of the shape found.
         unreachable_pairs: component pairs with no path in G_a.
         labels: component of each vertex ``(m,)`` (-1 outside the shape or discarded).
     """
@@ -96,85 +102,112 @@ class Penalties:
     labels: np.ndarray
 
 
-def shape_components(
-    f: np.ndarray, kind: np.ndarray, valid: np.ndarray, edges: np.ndarray
-) -> tuple[np.ndarray, int]:
-    """Components of ``{f <= 0}`` among the vertices of one shape.
+@dataclass
+class ShapeGraph:
+    """The surface network of one shape in local indices (input of :func:`saddle_penalties`).
 
-    Arguments:
-        f: vertex values ``(m,)``; kind: ``MINIMUM/SADDLE/MAXIMUM`` ``(m,)``; valid: vertices kept
-            (e.g. inside the design region) ``(m,)``; edges: ``(E, 2)`` vertex pairs.
+    Attributes:
+        x: vertex positions ``(m, d)``; f: values ``(m,)``; kind: ``MINIMUM/SADDLE/MAXIMUM``
+            ``(m,)``; valid: vertices kept (inside the design region) ``(m,)``.
+        start, end: path endpoints ``(P,)`` (end -1: reached no vertex).
+        length, outside_length: path arc lengths and their parts with ``f > 0`` ``(P,)``.
+        end_label: grid component (1..n_grid, 0 none) at the path's anchor ``(P,)`` (used when
+            the path reached no valid inside vertex).
+        vertex_label: grid component at each vertex ``(m,)`` (0 none).
+        n_grid: number of grid components (0 when the grid support is off).
+    """
+
+    x: np.ndarray
+    f: np.ndarray
+    kind: np.ndarray
+    valid: np.ndarray
+    start: np.ndarray
+    end: np.ndarray
+    length: np.ndarray
+    outside_length: np.ndarray
+    end_label: np.ndarray
+    vertex_label: np.ndarray
+    n_grid: int = 0
+
+
+def shape_components(g: ShapeGraph) -> tuple[np.ndarray, np.ndarray, int]:
+    """Components of ``{f <= 0}`` of one shape, from the surface network and the grid.
+
+    Nodes are the vertices and the grid components; they are joined by (i) paths that start at an
+    inside vertex and end at an inside vertex or (via its anchor) in a grid component (such a path
+    never leaves the shape, ``f`` being monotone along it), and (ii) an inside vertex and the grid
+    component at its position. A class is a component of the shape if it holds a grid component
+    or an inside minimum (Morse: every component that does not touch the domain boundary has one).
 
     Returns:
-        labels ``(m,)`` (``0..C-1``, -1 for outside/invalid/discarded vertices) and ``C``.
+        ``labels`` of the vertices ``(m,)`` (``0..C-1``; -1 outside/invalid/discarded), the
+        component of each grid component ``(n_grid,)`` and ``C``.
     """
-    m = f.shape[0]
-    inside = (f <= 0) & valid
-    labels = np.full(m, -1, dtype=np.int64)
-    if not inside.any():
-        return labels, 0
-    e = edges[inside[edges[:, 0]] & inside[edges[:, 1]]] if edges.size else edges.reshape(0, 2)
-    A = sparse.coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(m, m))
+    m = g.f.shape[0]
+    inside = (g.f <= 0) & g.valid
+    n = m + g.n_grid
+    ends = np.where((g.end >= 0) & inside[np.maximum(g.end, 0)], g.end, -1)
+    ends = np.where((ends < 0) & (g.end_label > 0), m + g.end_label - 1, ends)
+    link = inside[g.start] & (ends >= 0)
+    u = [g.start[link]]
+    v = [ends[link]]
+    vl = inside & (g.vertex_label > 0)
+    u.append(np.nonzero(vl)[0])
+    v.append(m + g.vertex_label[vl] - 1)
+    u, v = np.concatenate(u), np.concatenate(v)
+    A = sparse.coo_matrix((np.ones(len(u)), (u, v)), shape=(n, n))
     _, lab = csgraph.connected_components(A, directed=False)
-    lab_in = lab[inside]
-    has_min = np.zeros(lab.max() + 1, dtype=bool)
-    has_min[lab[inside & (kind == MINIMUM)]] = True
-    keep_groups = np.unique(lab_in[has_min[lab_in]])
-    remap = np.full(lab.max() + 1, -1, dtype=np.int64)
-    remap[keep_groups] = np.arange(len(keep_groups))
-    labels[inside] = remap[lab_in]
-    return labels, int(len(keep_groups))
+    member = np.concatenate([inside, np.ones(g.n_grid, dtype=bool)])
+    anchor = np.concatenate([inside & (g.kind == MINIMUM), np.ones(g.n_grid, dtype=bool)])
+    good = np.zeros(lab.max() + 1 if n else 0, dtype=bool)
+    good[lab[anchor]] = True
+    keep = np.unique(lab[member & good[lab]])
+    remap = np.full(lab.max() + 1 if n else 0, -1, dtype=np.int64)
+    remap[keep] = np.arange(len(keep))
+    labels = np.where(member[:m], remap[lab[:m]], -1)
+    return labels, remap[lab[m:]], int(len(keep))
 
 
-def saddle_penalties(
-    x: np.ndarray,
-    f: np.ndarray,
-    kind: np.ndarray,
-    valid: np.ndarray,
-    edges: np.ndarray,
-    length: np.ndarray,
-    outside_length: np.ndarray,
-    eps: float,
-) -> Penalties:
+def saddle_penalties(g: ShapeGraph, eps: float) -> Penalties:
     """Algorithm 1 on the augmented surface network of one shape.
 
     Arguments:
-        x: vertex positions ``(m, d)``; f: values ``(m,)``; kind: ``(m,)``; valid: ``(m,)`` bool.
-        edges: surface-network edges ``(E, 2)`` (local vertex indices); length, outside_length:
-            their arc lengths and the parts outside the shape ``(E,)``.
+        g: :class:`ShapeGraph`.
         eps: the ``eps`` of ``1 / (d + eps)``.
 
     Returns:
         :class:`Penalties`.
     """
-    m = f.shape[0]
-    labels, C = shape_components(f, kind, valid, edges)
+    m = g.f.shape[0]
+    labels, grid_comp, C = shape_components(g)
     weights = np.zeros(m)
     if C <= 1:
         return Penalties(weights, C, 0, labels)
-    outside = np.nonzero((f > 0) & valid)[0]
+    outside = np.nonzero((g.f > 0) & g.valid)[0]
     node = np.full(m, -1, dtype=np.int64)
     node[labels >= 0] = labels[labels >= 0]
     node[outside] = C + np.arange(len(outside))
     N = C + len(outside)
     W = np.full((N, N), np.inf)
-    if edges.size:
-        a, b = node[edges[:, 0]], node[edges[:, 1]]
+    if len(g.start):
+        a = node[g.start]
+        b = np.where(g.end >= 0, node[np.maximum(g.end, 0)], -1)
+        via_anchor = (b < 0) & (g.end_label > 0)
+        b = np.where(via_anchor, grid_comp[np.maximum(g.end_label - 1, 0)] if g.n_grid else -1, b)
         ok = (a >= 0) & (b >= 0) & (a != b)
-        both_out = (a >= C) & (b >= C)
-        w = np.where(both_out, length, outside_length)
+        w = np.where((a >= C) & (b >= C), g.length, g.outside_length)
         w = np.maximum(w, 1e-12)
         np.minimum.at(W, (a[ok], b[ok]), w[ok])
         np.minimum.at(W, (b[ok], a[ok]), w[ok])
     if len(outside) > 1:
-        xo = x[outside]
+        xo = g.x[outside]
         D = np.linalg.norm(xo[:, None, :] - xo[None, :, :], axis=-1)
         np.fill_diagonal(D, np.inf)
         W[C:, C:] = np.minimum(W[C:, C:], np.maximum(D, 1e-12))
     W[~np.isfinite(W)] = 0.0
     dist, pred = csgraph.dijkstra(sparse.csr_matrix(W), directed=False, indices=np.arange(C), return_predecessors=True)
     is_saddle = np.zeros(N, dtype=bool)
-    is_saddle[node[outside]] = kind[outside] == SADDLE
+    is_saddle[node[outside]] = g.kind[outside] == SADDLE
     vertex_of = np.full(N, -1, dtype=np.int64)
     vertex_of[node[outside]] = outside
     unreachable = 0
@@ -200,10 +233,51 @@ def saddle_penalties(
     return Penalties(weights, C, unreachable, labels)
 
 
+def grid_label_at(pos: np.ndarray, labels: np.ndarray, box: Box) -> np.ndarray:
+    """Label of the nearest labelled node among the ``2^d`` corners of the grid cell of each
+    position (0 if none, or for NaN positions).
+
+    Arguments:
+        pos: ``(n, d)``; labels: int grid ``(n_1, ..., n_d)`` over ``box`` (vertex grid).
+    """
+    n, d = pos.shape
+    out = np.zeros(n, dtype=np.int64)
+    ok = np.isfinite(pos).all(axis=1)
+    if not ok.any():
+        return out
+    shape = np.asarray(labels.shape)
+    lo, hi = np.asarray(box.lo, float), np.asarray(box.hi, float)
+    u = (pos[ok] - lo) / (hi - lo) * (shape - 1)
+    base = np.clip(np.floor(u).astype(np.int64), 0, shape - 2)
+    corners = np.array(np.meshgrid(*[[0, 1]] * d, indexing="ij")).reshape(d, -1).T  # (2^d, d)
+    nodes = base[:, None, :] + corners[None]  # (n, 2^d, d)
+    lab = labels[tuple(nodes[..., i] for i in range(d))]  # (n, 2^d)
+    dist = np.linalg.norm(nodes - u[:, None, :], axis=-1)
+    dist = np.where(lab > 0, dist, np.inf)
+    best = dist.argmin(axis=1)
+    pick = lab[np.arange(len(best)), best]
+    out[ok] = np.where(np.isfinite(dist.min(axis=1)), pick, 0)
+    return out
+
+
 def batch_penalties(
-    net: SurfaceNetwork, valid: np.ndarray, n_shapes: int, eps: float
+    net: SurfaceNetwork,
+    valid: np.ndarray,
+    n_shapes: int,
+    eps: float,
+    grid_labels: list[np.ndarray] | None = None,
+    box: Box | None = None,
 ) -> tuple[np.ndarray, list[Penalties]]:
     """:func:`saddle_penalties` for every shape of a batch.
+
+    Arguments:
+        net: the surface network of all shapes.
+        valid: vertices kept ``(m,)``.
+        n_shapes: ``S``.
+        eps: of ``1 / (d + eps)``.
+        grid_labels: optional per-shape labelled grids of ``{f <= 0}`` (∩ E) over ``box``
+            (:func:`ginn.topology.components.label_components`), giving components that touch
+            the domain or region boundary.
 
     Returns:
         the penalty of every vertex ``(m,)`` (normalised per shape) and the per-shape results.
@@ -215,16 +289,29 @@ def batch_penalties(
     shape = pts.shape.cpu().numpy()
     p = np.zeros(pts.m)
     results = []
-    edge_shape = shape[net.edges[:, 0]] if net.edges.size else np.zeros(0, np.int64)
+    path_shape = shape[net.path_start] if net.n_paths else np.zeros(0, np.int64)
     for s in range(n_shapes):
         vid = np.nonzero(shape == s)[0]
-        local = np.full(pts.m, -1, dtype=np.int64)
+        local = np.full(pts.m + 1, -1, dtype=np.int64)
         local[vid] = np.arange(len(vid))
-        es = edge_shape == s
-        e = local[net.edges[es]] if net.edges.size else np.zeros((0, 2), np.int64)
-        r = saddle_penalties(
-            x[vid], f[vid], kind[vid], valid[vid], e, net.length[es], net.outside_length[es], eps
+        ps = path_shape == s
+        start = local[net.path_start[ps]]
+        end = local[net.path_end[ps]]  # -1 maps to local[-1] == -1
+        if grid_labels is not None:
+            assert box is not None
+            gl = grid_labels[s]
+            n_grid = int(gl.max())
+            end_label = grid_label_at(net.path_anchor[ps], gl, box)
+            vertex_label = grid_label_at(x[vid], gl, box)
+        else:
+            n_grid = 0
+            end_label = np.zeros(int(ps.sum()), np.int64)
+            vertex_label = np.zeros(len(vid), np.int64)
+        g = ShapeGraph(
+            x[vid], f[vid], kind[vid], valid[vid], start, end,
+            net.path_length[ps], net.path_outside_length[ps], end_label, vertex_label, n_grid,
         )
+        r = saddle_penalties(g, eps)
         p[vid] = r.weights
         results.append(r)
     return p, results
@@ -271,6 +358,7 @@ class ConnectednessLoss:
         self._latents: Tensor | None = None
         self._seeds: tuple[Tensor, Tensor] | None = None
         self._results: list[Penalties] = []
+        self._region_mask: np.ndarray | None = None
         self.last_info: dict = {}
 
     # --- state ---------------------------------------------------------------------------------
@@ -314,15 +402,31 @@ class ConnectednessLoss:
         pts = find_critical_points(
             field, Z, self.domain, self.config.grid, prev, self.options.critical, self.generator, self.device, self.dtype
         )
-        self.network = trace_surface_network(field, Z, self.domain, pts, self.config.grid, self.options.paths)
+        self.network = trace_surface_network(
+            field, Z, self.domain, pts, self.config.grid, self.options.paths, region=self.region
+        )
         self.points = pts
         self.last_full = self.step
 
-    def _penalise(self, S: int) -> list[Penalties]:
+    def _grid_labels(self, field, Z: Tensor | None) -> list[np.ndarray] | None:
+        if self.options.label_grid <= 0:
+            return None
+        res = self.options.label_grid * self.config.grid
+        vals, pts, shape = field_on_grid(field, Z, self.domain, res, self.device, self.dtype)
+        if self._region_mask is None or self._region_mask.shape != shape:
+            self._region_mask = (
+                self.region.contains(pts).reshape(shape).cpu().numpy().astype(bool)
+                if self.region is not None
+                else np.ones(shape, dtype=bool)
+            )
+        return [label_components((v <= 0) & self._region_mask)[0] for v in vals]
+
+    def _penalise(self, field, Z: Tensor | None, S: int) -> list[Penalties]:
         assert self.network is not None and self.points is not None
         self.network.points = self.points
         valid = self._valid(self.points)
-        self.penalty, results = batch_penalties(self.network, valid, S, self.config.eps)
+        labels = self._grid_labels(field, Z)
+        self.penalty, results = batch_penalties(self.network, valid, S, self.config.eps, labels, self.domain)
         self._inside = (self.points.f <= 0).cpu().numpy() & valid
         self._results = results
         return results
@@ -356,12 +460,12 @@ class ConnectednessLoss:
         if full:
             self._latents = Zd
             self._full_build(field, Zd)
-            self._penalise(S)
+            self._penalise(field, Zd, S)
             reason = "full"
         else:
             inside = (self.points.f <= 0).cpu().numpy() & self._valid(self.points)
             if self._inside is None or not np.array_equal(inside, self._inside):
-                self._penalise(S)
+                self._penalise(field, Zd, S)
                 reason = "warm+graph"
         loss = self._loss(field, Z, S)
         pts = self.points

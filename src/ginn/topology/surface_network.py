@@ -10,8 +10,11 @@ h_min, h_max)`` (large steps far from every critical point, geometric approach n
 
 A path ends when it comes within ``capture`` of a critical point of its shape whose value lies
 on the right side of the saddle's value (it cannot reach any other, since ``f`` is monotone along
-an integral path), leaves the domain box, stalls (``|grad f|`` vanishes away from every known
-critical point) or runs out of steps; only the first kind gives an edge.
+an integral path), leaves the domain box, stalls (it oscillates around a zero of the gradient that
+is not a known critical point: every reversal of direction halves its step, and it stops below
+``h_min``) or runs out of steps; only the first kind gives an edge, but every path keeps its
+*anchor*, the last point where it was inside the shape, which the connectedness loss uses to
+attach paths that end in a component without a known vertex (one touching the domain boundary).
 
 Besides its endpoints, each edge records the path's arc length and the part of it that lies
 *outside* the shape (``f > 0``, by linear interpolation of ``f`` between steps); the connectedness
@@ -31,7 +34,7 @@ from scipy import sparse
 from torch import Tensor
 
 from ..fields import Field, gradient
-from ..geometry.base import Box
+from ..geometry.base import Box, Region
 from .critical import CriticalPoints, cell_size, latents_of
 
 END_VERTEX, END_LEFT_DOMAIN, END_STALLED, END_MAX_STEPS = 0, 1, 2, 3
@@ -65,35 +68,59 @@ class PathOptions:
 class SurfaceNetwork:
     """Critical points (vertices) and integral paths (edges) of all shapes.
 
+    Path-level arrays (``P`` paths, every path traced):
+
     Attributes:
         points: the vertices.
-        edges: ``(E, 2)`` int array ``(saddle, end vertex)``, vertex indices into ``points``.
-        descending: ``(E,)`` bool: the path descends (towards a minimum).
-        length: arc length of each path ``(E,)``.
-        outside_length: arc length where ``f > 0`` ``(E,)``.
-        n_paths: number of paths traced; ``ends``: ``(P,)`` how each ended (``END_*`` codes).
+        path_start: saddle each path starts from ``(P,)`` (vertex index).
+        path_end: vertex it reached ``(P,)``, -1 when it ended otherwise (see ``ends``).
+        path_descending: ``(P,)`` bool: the path descends (towards a minimum).
+        path_length: arc length ``(P,)``.
+        path_outside_length: arc length where ``f > 0`` ``(P,)``.
+        path_anchor: the last point of the path inside the shape (and inside the region given to
+            the tracer) ``(P, d)``; NaN rows for paths that never were inside.
+        ends: how each path ended ``(P,)`` (``END_*`` codes).
     """
 
     points: CriticalPoints
-    edges: np.ndarray
-    descending: np.ndarray
-    length: np.ndarray
-    outside_length: np.ndarray
-    n_paths: int
+    path_start: np.ndarray
+    path_end: np.ndarray
+    path_descending: np.ndarray
+    path_length: np.ndarray
+    path_outside_length: np.ndarray
+    path_anchor: np.ndarray
     ends: np.ndarray
 
+    @property
+    def n_paths(self) -> int:
+        return int(len(self.path_start))
+
+    @property
+    def edges(self) -> np.ndarray:
+        """``(E, 2)`` ``(saddle, end vertex)`` of the paths that reached a vertex."""
+        ok = self.path_end >= 0
+        return np.stack([self.path_start[ok], self.path_end[ok]], axis=1).astype(np.int64)
+
     def adjacency(self, weight: str = "length") -> sparse.csr_matrix:
-        """Symmetric ``(m, m)`` sparse matrix of the edges weighted by ``length`` or
-        ``outside_length`` (the smaller of parallel edges; a tiny positive floor keeps zero
+        """Symmetric ``(m, m)`` sparse matrix of the edges weighted by ``"length"`` or
+        ``"outside_length"`` (the smaller of parallel edges; a tiny positive floor keeps zero
         weights as edges)."""
         m = self.points.m
-        w = np.maximum(getattr(self, weight), 1e-12)
-        u, v = self.edges[:, 0], self.edges[:, 1]
+        ok = self.path_end >= 0
+        w = np.maximum(getattr(self, "path_" + weight)[ok], 1e-12)
+        u, v = self.path_start[ok], self.path_end[ok]
         dense = np.full((m, m), np.inf)
         np.minimum.at(dense, (u, v), w)
         np.minimum.at(dense, (v, u), w)
         dense[~np.isfinite(dense)] = 0.0
         return sparse.csr_matrix(dense)
+
+    @staticmethod
+    def empty(points: CriticalPoints) -> "SurfaceNetwork":
+        d = points.dim
+        z = np.zeros(0)
+        i = np.zeros(0, np.int64)
+        return SurfaceNetwork(points, i, i.copy(), np.zeros(0, bool), z, z.copy(), np.zeros((0, d)), i.copy())
 
 
 def _padded_points(points: CriticalPoints, S: int) -> tuple[Tensor, Tensor, Tensor]:
@@ -121,6 +148,7 @@ def trace_surface_network(
     points: CriticalPoints,
     grid: int = 16,
     options: PathOptions = PathOptions(),
+    region: Region | None = None,
 ) -> SurfaceNetwork:
     """Integral paths from every saddle of every shape, traced together.
 
@@ -131,6 +159,8 @@ def trace_surface_network(
         points: the critical points (vertices) of all shapes.
         grid: seed-grid cells along the longest axis (sets the length scale of ``options``).
         options: path settings.
+        region: optional region (the design region E): anchors (last points inside the shape)
+            must also lie in it.
 
     Returns:
         :class:`SurfaceNetwork`.
@@ -141,9 +171,8 @@ def trace_surface_network(
     dev, dt = points.x.device, points.x.dtype
     kind_index = points.index
     sad = torch.nonzero((kind_index > 0) & (kind_index < d), as_tuple=False).squeeze(-1)
-    empty = SurfaceNetwork(points, np.zeros((0, 2), np.int64), np.zeros(0, bool), np.zeros(0), np.zeros(0), 0, np.zeros(0, np.int64))
     if sad.numel() == 0:
-        return empty
+        return SurfaceNetwork.empty(points)
     # start points: saddle x eigenvector x sign
     lam = points.eigvals[sad]  # (n_s, d)
     V = points.eigvecs[sad]  # (n_s, d, d) columns
@@ -171,9 +200,14 @@ def trace_surface_network(
     f_prev = f0.clone()
     prev_pos = points.x[start_vertex].clone()
     alive = torch.ones(P, dtype=torch.bool, device=dev)
+    anchor = torch.full((P, d), float("nan"), device=dev, dtype=dt)
+    s_in = (f0 <= 0) & _in_region(region, prev_pos)
+    anchor[s_in] = prev_pos[s_in]
     # the first segment (saddle -> start point)
     seg = (pos - prev_pos).norm(dim=-1)
     cap, hmin, hmax = options.capture * h, options.h_min * h, options.h_max * h
+    hcur = torch.full((P,), hmax, device=dev, dtype=dt)
+    u_prev = dirs * sgn[:, None]  # the direction the path starts in (away from the saddle)
     for _ in range(options.max_steps):
         idx = torch.nonzero(alive, as_tuple=False).squeeze(-1)
         if idx.numel() == 0:
@@ -186,13 +220,19 @@ def trace_surface_network(
         length[idx] += seg[idx]
         out_len[idx] += seg[idx] * frac_out
         f_prev[idx] = f
+        now_in = (f <= 0) & ((p >= lo) & (p <= hi)).all(-1) & _in_region(region, p)
+        anchor[idx[now_in]] = p[now_in]
         # capture
         dist = (p[:, None, :] - Xv[shape[idx]]).norm(dim=-1)  # (n, M)
         dist = torch.where(reach[idx], dist, torch.full_like(dist, float("inf")))
         dmin, arg = dist.min(dim=1)
         captured = dmin <= cap
         gnorm = g.norm(dim=-1)
-        stalled = ~captured & (gnorm <= options.stall_tol)
+        u = sgn[idx, None] * g / gnorm[:, None].clamp_min(1e-30)
+        # a reversal of direction means the path overshot a zero of the gradient: halve the step
+        rev = (u * u_prev[idx]).sum(-1) < 0
+        hcur[idx[rev]] = hcur[idx[rev]] * 0.5
+        stalled = ~captured & ((gnorm <= options.stall_tol) | (hcur[idx] < hmin))
         out = ~((p >= lo) & (p <= hi)).all(-1) & ~captured
         ci = idx[captured]
         end[ci] = Iv[shape[ci], arg[captured]]
@@ -206,21 +246,19 @@ def trace_surface_network(
         alive[idx[captured | out | stalled]] = False
         go = ~(captured | out | stalled)
         gi = idx[go]
-        step = (0.5 * dmin[go]).clamp(min=hmin, max=hmax)
-        u = sgn[gi, None] * g[go] / gnorm[go, None].clamp_min(1e-30)
-        new = p[go] + step[:, None] * u
+        step = torch.minimum((0.5 * dmin[go]).clamp(min=hmin, max=hmax), hcur[gi])
+        new = p[go] + step[:, None] * u[go]
+        u_prev[gi] = u[go]
         seg[gi] = step
         pos[gi] = new
-    ok = (how == END_VERTEX).cpu().numpy()
-    sv = start_vertex.cpu().numpy()
-    edges = np.stack([sv[ok], end.cpu().numpy()[ok]], axis=1).astype(np.int64)
     return SurfaceNetwork(
         points,
-        edges,
-        desc.cpu().numpy()[ok],
-        length.detach().cpu().double().numpy()[ok],
-        out_len.detach().cpu().double().numpy()[ok],
-        P,
+        start_vertex.cpu().numpy().astype(np.int64),
+        end.cpu().numpy().astype(np.int64),
+        desc.cpu().numpy(),
+        length.detach().cpu().double().numpy(),
+        out_len.detach().cpu().double().numpy(),
+        anchor.detach().cpu().double().numpy(),
         how.cpu().numpy(),
     )
 
@@ -232,3 +270,9 @@ def _fraction_positive(fa: Tensor, fb: Tensor) -> Tensor:
     denom = (fa - fb).abs().clamp_min(1e-30)
     mixed = torch.where(fa > 0, fa.clamp_min(0) / denom, fb.clamp_min(0) / denom).clamp(0, 1)
     return torch.where(both, torch.ones_like(fa), torch.where(none, torch.zeros_like(fa), mixed))
+
+
+def _in_region(region: Region | None, x: Tensor) -> Tensor:
+    if region is None:
+        return torch.ones(x.shape[0], dtype=torch.bool, device=x.device)
+    return region.contains(x).to(x.device)

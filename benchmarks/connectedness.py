@@ -1,0 +1,177 @@
+"""Cost of the connectedness loss in the obstacle setting (one CPU thread).
+
+16 shapes of a 2D SIREN 4x64 (``w0_first = 1``) conditioned on 16 latents in [-1, 1], domain
+[-1, 1] x [-0.5, 0.5], design region [-0.9, 0.9] x [-0.4, 0.4] minus a disk of radius 0.1.
+
+Measures (median over repeats):
+
+* a full surface-network build (seeds, Newton, DBSCAN, classification, path tracing, penalties,
+  loss);
+* a warm update (re-converge the stored critical points after an optimiser step, loss);
+* one training step of a stand-in loss (eikonal on 16 x 4096 points + an interface-like term,
+  Adam) without and with the connectedness loss, the latter rebuilding every ``--every`` steps;
+* the same for the persistent-homology loss.
+
+The last line is the share of a training step spent in connectedness.
+
+Usage: ``python benchmarks/connectedness.py [--every 10] [--steps 30] [--grid 16]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+
+import torch
+
+from ginn.fields import evaluate
+from ginn.geometry.base import Box, Region
+from ginn.models import Siren
+from ginn.topology import b0, make_connectedness_loss
+from ginn.train.config import ConnectednessConfig
+
+
+class _ObstacleRegion(Region):
+    """[-0.9, 0.9] x [-0.4, 0.4] minus the disk of radius 0.1 (approximate SDF)."""
+
+    dim = 2
+
+    def sdf(self, x):
+        q = x.abs() - torch.tensor([0.9, 0.4], dtype=x.dtype)
+        box = q.clamp_min(0).norm(dim=-1) + q.max(dim=-1).values.clamp_max(0)
+        return torch.maximum(box, 0.1 - x.norm(dim=-1))
+
+
+def fit_to_blobs(model, Z, box, steps: int) -> None:
+    """Fit the model (values only, Adam) to three disjoint disks per shape that move smoothly
+    with the latent, so that every shape starts disconnected, as early in the obstacle training
+    (Fig. 8a of the paper)."""
+    if steps <= 0:
+        return
+    g = torch.Generator().manual_seed(2)
+    S = Z.shape[0]
+    z = Z[:, 0]
+    cx = torch.tensor([-0.6, 0.0, 0.6]).expand(S, 3)
+    cy = 0.2 * torch.sin(torch.pi * z[:, None] + torch.tensor([0.0, 2.0, 4.0]))
+    centres = torch.stack([cx, cy], -1)  # (S, 3, 2)
+    radius = 0.17 + 0.03 * z[:, None]
+    lo, hi = box.tensors()
+    opt = torch.optim.Adam(model.parameters(), lr=5e-3)
+    for _ in range(steps):
+        x = lo + (hi - lo) * torch.rand(S, 512, 2, generator=g)
+        d = (x[:, :, None, :] - centres[:, None]).norm(dim=-1) - radius[:, None]
+        target = d.min(dim=-1).values
+        f = model(x.reshape(-1, 2), Z.repeat_interleave(512, 0))
+        loss = ((f - target.reshape(-1)) ** 2).mean()
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--every", type=int, default=10)
+    ap.add_argument("--steps", type=int, default=30)
+    ap.add_argument("--grid", type=int, default=16)
+    ap.add_argument("--ph-grid", type=int, default=64)
+    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--fit-steps", type=int, default=400, help="pre-fit to disjoint disks (0: initial SIREN)")
+    args = ap.parse_args()
+    torch.set_num_threads(1)
+    t0 = time.perf_counter()
+    torch.manual_seed(0)
+    box = Box((-1.0, -0.5), (1.0, 0.5))
+    region = _ObstacleRegion()
+    model = Siren(2, [64] * 4, latent_dim=1, w0_first=1.0)
+    S = 16
+    Z = torch.linspace(-1, 1, S)[:, None]
+    fit_to_blobs(model, Z, box, args.fit_steps)
+    print(f"set-up {time.perf_counter() - t0:.1f} s; b0 (grid 128, in E) per shape: {b0(model, Z, box, 128, region).tolist()}")
+    opt = torch.optim.Adam(model.parameters(), lr=1e-3)
+    gen = torch.Generator().manual_seed(1)
+    n_dom, n_if = 4096, 256
+
+    def base_loss() -> torch.Tensor:
+        lo, hi = box.tensors()
+        x = lo + (hi - lo) * torch.rand(S * n_dom, 2, generator=gen)
+        z = Z.repeat_interleave(n_dom, 0)
+        v = evaluate(model, x, z, grad=True, create_graph=True)
+        eik = ((v.grad.norm(dim=-1) - 1) ** 2).mean()
+        y = -0.4 + 0.8 * torch.rand(S * n_if, 1, generator=gen)
+        xi = torch.cat([torch.where(torch.rand(S * n_if, 1, generator=gen) < 0.5, -0.9, 0.9), y], dim=1)
+        fi = model(xi, Z.repeat_interleave(n_if, 0))
+        return eik + (fi**2).mean()
+
+    def step(conn=None) -> tuple[float, float, dict]:
+        t0 = time.perf_counter()
+        opt.zero_grad()
+        loss = base_loss()
+        tc = 0.0
+        info: dict = {}
+        if conn is not None:
+            t1 = time.perf_counter()
+            lc = conn(model, Z)
+            tc = time.perf_counter() - t1
+            info = conn.last_info
+            loss = loss + 1e-2 * lc
+        loss.backward()
+        opt.step()
+        return time.perf_counter() - t0, tc, info
+
+    cfg = ConnectednessConfig(method="surface-network", every=10**9, grid=args.grid)
+    # full builds on the initial model (fresh object each time)
+    full = []
+    for _ in range(args.repeats):
+        conn = make_connectedness_loss(box, region, cfg)
+        t = time.perf_counter()
+        conn(model, Z)
+        full.append(time.perf_counter() - t)
+    info = conn.last_info
+    print(
+        f"full build: {statistics.median(full):.3f} s (median of {args.repeats}); "
+        f"critical points {info['n_critical']} (min {info['n_minima']}, saddles {info['n_saddles']}, "
+        f"max {info['n_maxima']}), paths {info['n_paths']}, edges {info['n_edges']}, "
+        f"components per shape {info['n_components']}"
+    )
+    # warm updates after optimiser steps
+    warm, kinds = [], []
+    for _ in range(args.steps):
+        step()
+        t = time.perf_counter()
+        conn(model, Z)
+        warm.append(time.perf_counter() - t)
+        kinds.append(conn.last_info["update"])
+    ok = [w for w, k in zip(warm, kinds) if k != "full"]
+    print(
+        f"warm update: {statistics.median(ok) if ok else float('nan'):.4f} s (median of {len(ok)} warm; "
+        f"{kinds.count('full')} of {len(kinds)} fell back to a full build)"
+    )
+    # training steps
+    plain = [step()[0] for _ in range(args.steps)]
+    t_plain = statistics.median(plain)
+    print(f"step without connectedness: {t_plain:.3f} s")
+    results = {}
+    for method, grid in (("surface-network", args.grid), ("persistent-homology", args.ph_grid)):
+        c = ConnectednessConfig(method=method, every=args.every, grid=grid)
+        conn = make_connectedness_loss(box, region, c)
+        tot, tcs, fulls = [], [], 0
+        for _ in range(args.steps):
+            ts, tc, inf = step(conn)
+            tot.append(ts)
+            tcs.append(tc)
+            fulls += inf.get("update") == "full"
+        results[method] = (statistics.mean(tot), statistics.mean(tcs))
+        print(
+            f"step with {method} (every={args.every if method == 'surface-network' else 1}, grid={grid}): "
+            f"{statistics.mean(tot):.3f} s mean, connectedness {statistics.mean(tcs):.4f} s mean "
+            f"({fulls} full builds in {args.steps} steps), components now {conn.last_info['n_components']}"
+        )
+    tot, tc = results["persistent-homology"]
+    print(f"persistent-homology share of a step: {100 * tc / tot:.1f}%")
+    tot, tc = results["surface-network"]
+    print(f"surface-network connectedness share of a training step: {100 * tc / tot:.1f}%")
+
+
+if __name__ == "__main__":
+    main()

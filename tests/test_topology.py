@@ -1,0 +1,396 @@
+"""Critical points, surface network, connectedness losses and b0 on analytic fields (float64).
+
+The fields are smooth unions of disks/spheres: ``softmin_k(sqrt(|x - c_i|^2 + delta^2) - r_i)``
+(the square root removes the cone point at the centres, the log-sum-exp soft minimum the kink on
+the medial axis), so their critical points are known exactly: a minimum at every centre and,
+for two equal disks, a saddle at the midpoint by symmetry.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from ginn.geometry.base import Box, Region
+from ginn.topology import (
+    MAXIMUM,
+    MINIMUM,
+    SADDLE,
+    ConnectednessLoss,
+    CriticalPointOptions,
+    PersistenceOptions,
+    SurfaceNetworkLossOptions,
+    b0,
+    b0_of_mask,
+    component_sizes,
+    count_components,
+    death_points,
+    find_critical_points,
+    label_components,
+    make_connectedness_loss,
+    trace_surface_network,
+)
+from ginn.train.config import ConnectednessConfig
+
+DT = torch.float64
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _one_thread():
+    """Tiny tensors: intra-op threads only add contention on a shared machine."""
+    n = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(n)
+
+K, DELTA = 0.05, 0.05
+TIGHT = SurfaceNetworkLossOptions(critical=CriticalPointOptions(tol=1e-10))
+
+
+def blobs(centres, radii, k=K, delta=DELTA, shift=None):
+    """Smooth union of balls; ``shift`` (a tensor/parameter) is added to the field."""
+    C = torch.as_tensor(centres, dtype=DT)
+    R = torch.as_tensor(radii, dtype=DT).expand(C.shape[0])
+
+    def field(x, z=None):
+        d = torch.sqrt(((x[:, None, :] - C[None]) ** 2).sum(-1) + delta**2) - R
+        f = -k * torch.logsumexp(-d / k, dim=1)
+        return f if shift is None else f + shift
+
+    return field
+
+
+def boundary_crossing(field, a, b, n=60):
+    """The point where ``field`` crosses 0 on the segment from ``a`` (f > 0) to ``b`` (f < 0)."""
+    a, b = torch.as_tensor(a, dtype=DT), torch.as_tensor(b, dtype=DT)
+    lo, hi = 0.0, 1.0
+    for _ in range(n):
+        mid = 0.5 * (lo + hi)
+        if field((a + mid * (b - a))[None])[0] > 0:
+            lo = mid
+        else:
+            hi = mid
+    return a + lo * (b - a)
+
+
+BOX2 = Box((-1.0, -1.0), (1.0, 1.0))
+BOX3 = Box((-1.0, -1.0, -1.0), (1.0, 1.0, 1.0))
+
+
+def _sorted_rows(x):
+    x = x.detach().numpy()
+    return x[np.lexsort(x.T[::-1])]
+
+
+# --- critical points ------------------------------------------------------------------------
+
+
+def test_two_disks_critical_points():
+    c1, c2 = [-0.45, -0.2], [0.5, 0.25]
+    f = blobs([c1, c2], 0.25)
+    cp = find_critical_points(f, None, BOX2, 16, options=TIGHT.critical, generator=torch.Generator().manual_seed(0), dtype=DT)
+    kind = cp.kind
+    assert int((kind == MINIMUM).sum()) == 2
+    assert int((kind == SADDLE).sum()) == 1
+    assert int((kind == MAXIMUM).sum()) == 0
+    minima = _sorted_rows(cp.x[kind == MINIMUM])
+    np.testing.assert_allclose(minima, np.array([c1, c2]), atol=1e-3)
+    saddle = cp.x[kind == SADDLE][0].numpy()
+    np.testing.assert_allclose(saddle, (np.array(c1) + np.array(c2)) / 2, atol=1e-3)
+    assert float(cp.grad_norm.max()) < 1e-8
+
+
+def test_two_spheres_critical_points_3d():
+    c1, c2 = [-0.45, 0.1, -0.1], [0.45, -0.1, 0.2]
+    f = blobs([c1, c2], 0.25)
+    cp = find_critical_points(f, None, BOX3, 10, options=TIGHT.critical, generator=torch.Generator().manual_seed(0), dtype=DT)
+    kind = cp.kind
+    assert int((kind == MINIMUM).sum()) == 2
+    assert int((kind == SADDLE).sum()) == 1
+    assert int(cp.index[kind == SADDLE][0]) == 1  # one descending direction
+    np.testing.assert_allclose(_sorted_rows(cp.x[kind == MINIMUM]), np.array([c1, c2]), atol=1e-3)
+    np.testing.assert_allclose(cp.x[kind == SADDLE][0].numpy(), (np.array(c1) + np.array(c2)) / 2, atol=1e-3)
+
+
+def test_batch_of_shapes_keeps_points_apart():
+    """Two shapes in one batch (latent shifts the second pair): each gets its own points."""
+    C = torch.tensor([[-0.5, 0.0], [0.5, 0.0]], dtype=DT)
+
+    def field(x, z):
+        c = C[None] + z[:, None, :] * torch.tensor([0.0, 0.3], dtype=DT)
+        d = torch.sqrt(((x[:, None, :] - c) ** 2).sum(-1) + DELTA**2) - 0.25
+        return -K * torch.logsumexp(-d / K, dim=1)
+
+    Z = torch.tensor([[0.0], [1.0]], dtype=DT)
+    cp = find_critical_points(field, Z, BOX2, 16, options=TIGHT.critical, generator=torch.Generator().manual_seed(0))
+    counts = cp.counts(2)
+    np.testing.assert_array_equal(counts["minima"], [2, 2])
+    np.testing.assert_array_equal(counts["saddles"], [1, 1])
+    s1 = cp.x[(cp.kind == SADDLE) & (cp.shape == 1)][0].numpy()
+    np.testing.assert_allclose(s1, [0.0, 0.3], atol=1e-3)
+
+
+def test_field_without_critical_points():
+    f = lambda x, z=None: x[:, 0] + 0.5 * x[:, 1]  # noqa: E731
+    cp = find_critical_points(f, None, BOX2, 8, dtype=DT)
+    assert cp.m == 0
+
+
+def test_surface_network_two_disks():
+    f = blobs([[-0.5, 0.0], [0.5, 0.0]], 0.25)
+    cp = find_critical_points(f, None, BOX2, 16, options=TIGHT.critical, dtype=DT)
+    net = trace_surface_network(f, None, BOX2, cp, 16)
+    s = int(torch.nonzero(cp.kind == SADDLE)[0])
+    desc = net.path_descending & (net.path_end >= 0)
+    ends = sorted(net.path_end[desc].tolist())
+    assert ends == sorted(torch.nonzero(cp.kind == MINIMUM).squeeze(-1).tolist())
+    assert (net.path_start[desc] == s).all()
+    # outside part of each descending path = distance from the saddle to the disk's boundary
+    edge = boundary_crossing(f, [0.0, 0.0], [0.5, 0.0])
+    np.testing.assert_allclose(net.path_outside_length[desc], float(edge.norm()), rtol=1e-3)
+    A = net.adjacency()
+    assert A.shape == (3, 3) and A.nnz == 4
+
+
+# --- connectedness loss ---------------------------------------------------------------------
+
+
+def test_loss_two_disks_all_penalty_on_saddle():
+    shift = torch.nn.Parameter(torch.zeros((), dtype=DT))
+    f = blobs([[-0.45, -0.2], [0.5, 0.25]], 0.25, shift=shift)
+    loss_fn = ConnectednessLoss(BOX2, None, ConnectednessConfig(), dtype=DT, options=TIGHT)
+    loss = loss_fn(f, None)
+    x, sh, p = loss_fn.penalised_points()
+    assert x.shape == (1, 2)
+    np.testing.assert_allclose(x[0].numpy(), [0.025, 0.025], atol=1e-3)
+    np.testing.assert_allclose(p.numpy(), [1.0])
+    assert loss.item() == pytest.approx(f(x)[0].item(), abs=1e-12)
+    assert loss_fn.last_info["n_components"] == [2]
+    loss.backward()
+    assert float(shift.grad) == pytest.approx(1.0)
+
+
+def test_loss_three_disks_inverse_gap_weights():
+    centres = [[-0.7, 0.0], [0.0, 0.0], [0.8, 0.0]]
+    r = 0.2
+    f = blobs(centres, r)
+    eps = 0.01
+    loss_fn = ConnectednessLoss(BOX2, None, ConnectednessConfig(eps=eps), dtype=DT, options=TIGHT)
+    loss_fn(f, None)
+    x, _, p = loss_fn.penalised_points()
+    order = torch.argsort(x[:, 0])
+    x, p = x[order].numpy(), p[order].numpy()
+    assert x.shape == (2, 2)
+    # the gaps between the boundaries, measured on the field itself
+    a1 = boundary_crossing(f, x[0], [-0.7, 0.0])[0]
+    b1 = boundary_crossing(f, x[0], [0.0, 0.0])[0]
+    a2 = boundary_crossing(f, x[1], [0.0, 0.0])[0]
+    b2 = boundary_crossing(f, x[1], [0.8, 0.0])[0]
+    g1, g2 = float(b1 - a1), float(b2 - a2)
+    # Algorithm 1: pairs (A,B) and (B,C) through one saddle each, (A,C) through both
+    w1 = 1 / (g1 + eps) + 1 / (g1 + g2 + eps)
+    w2 = 1 / (g2 + eps) + 1 / (g1 + g2 + eps)
+    np.testing.assert_allclose(p, [w1 / (w1 + w2), w2 / (w1 + w2)], rtol=1e-3)
+    assert p[0] > p[1]  # the nearer gap (left, 0.3 vs 0.4 between centres) weighs more
+
+
+def test_loss_two_spheres_3d():
+    c1, c2 = [-0.45, 0.1, -0.1], [0.45, -0.1, 0.2]
+    f = blobs([c1, c2], 0.25)
+    loss_fn = ConnectednessLoss(BOX3, None, ConnectednessConfig(grid=10), dtype=DT, options=TIGHT)
+    loss = loss_fn(f, None)
+    x, _, p = loss_fn.penalised_points()
+    np.testing.assert_allclose(x.numpy(), [(np.array(c1) + np.array(c2)) / 2], atol=1e-3)
+    np.testing.assert_allclose(p.numpy(), [1.0])
+    assert float(loss) == pytest.approx(float(f(x)[0]), abs=1e-12)
+
+
+def test_connected_shape_gives_zero_loss_with_a_graph():
+    w = torch.nn.Parameter(torch.ones((), dtype=DT))
+    base = blobs([[-0.2, 0.0], [0.2, 0.0]], 0.25)
+    f = lambda x, z=None: w * base(x)  # noqa: E731
+    loss_fn = ConnectednessLoss(BOX2, None, ConnectednessConfig(), dtype=DT, options=TIGHT)
+    loss = loss_fn(f, None)
+    assert loss.item() == 0.0 and loss.requires_grad
+    assert loss_fn.last_info["n_components"] == [1]
+
+
+def test_batch_mean_over_shapes():
+    """Shape 0 disconnected, shape 1 connected: loss = f_0(saddle) / 2."""
+    C = torch.tensor([[-0.5, 0.0], [0.5, 0.0]], dtype=DT)
+
+    def field(x, z):
+        c = C[None] * (1 - 0.7 * z[:, None, :])
+        d = torch.sqrt(((x[:, None, :] - c) ** 2).sum(-1) + DELTA**2) - 0.25
+        return -K * torch.logsumexp(-d / K, dim=1)
+
+    Z = torch.tensor([[0.0], [1.0]], dtype=DT)
+    loss_fn = ConnectednessLoss(BOX2, None, ConnectednessConfig(), dtype=DT, options=TIGHT)
+    loss = loss_fn(field, Z)
+    assert loss_fn.last_info["n_components"] == [2, 1]
+    x, sh, p = loss_fn.penalised_points()
+    assert sh.tolist() == [0]
+    f0 = field(x, Z[sh])
+    assert float(loss) == pytest.approx(float(f0[0]) / 2, abs=1e-12)
+
+
+class _HalfPlane(Region):
+    dim = 2
+
+    def __init__(self, x0):
+        self.x0 = x0
+
+    def sdf(self, x):
+        return self.x0 - x[:, 0]
+
+
+def test_design_region_ignores_outside_components():
+    """Three disks; the design region x >= -0.3 cuts off the left one: one pair is left."""
+    f = blobs([[-0.7, 0.0], [0.0, 0.0], [0.8, 0.0]], 0.2)
+    loss_fn = ConnectednessLoss(BOX2, _HalfPlane(-0.3), ConnectednessConfig(), dtype=DT, options=TIGHT)
+    loss_fn(f, None)
+    x, _, p = loss_fn.penalised_points()
+    assert loss_fn.last_info["n_components"] == [2]
+    np.testing.assert_allclose(x.numpy(), [[0.4, 0.0]], atol=1e-3)
+
+
+def test_component_touching_the_domain_boundary():
+    """A half-plane x <= -0.8 (no interior minimum) and a disk: found through the grid labels,
+    the saddle between them penalised."""
+    disk = blobs([[0.3, 0.0]], 0.2)
+
+    def f(x, z=None):
+        a = x[:, 0] + 0.8
+        b = disk(x)
+        return -K * torch.logsumexp(torch.stack([-a / K, -b / K], 1), dim=1)
+
+    loss_fn = ConnectednessLoss(BOX2, None, ConnectednessConfig(), dtype=DT, options=TIGHT)
+    loss_fn(f, None)
+    assert loss_fn.last_info["n_components"] == [2]
+    x, _, p = loss_fn.penalised_points()
+    assert x.shape == (1, 2) and abs(float(x[0, 1])) < 1e-3
+    # the saddle is where the two distances are equal: x + 0.8 = |x - 0.3| - r_eff
+    r_eff = np.sqrt(0.2**2 - DELTA**2)
+    # (up to ~2e-3: the smoothing makes |grad| slightly below 1 near the disk)
+    assert float(x[0, 0]) == pytest.approx((0.3 - r_eff - 0.8) / 2, abs=5e-3)
+    pure = ConnectednessLoss(
+        BOX2, None, ConnectednessConfig(), dtype=DT,
+        options=SurfaceNetworkLossOptions(critical=TIGHT.critical, label_grid=0),
+    )
+    pure(f, None)
+    assert pure.last_info["n_components"] == [1]  # the surface network alone misses it
+
+
+def test_warm_update_and_fallback():
+    shift = torch.zeros(2, dtype=DT)
+
+    def f(x, z=None):
+        return blobs([[-0.5 + float(shift[0]), 0.0], [0.5, float(shift[1])]], 0.25)(x)
+
+    loss_fn = ConnectednessLoss(BOX2, None, ConnectednessConfig(every=100), dtype=DT, options=TIGHT)
+    loss_fn(f, None)
+    assert loss_fn.last_info["update"] == "full"
+    shift[0] = 0.02  # the saddle moves to x = 0.01
+    loss = loss_fn(f, None)
+    assert loss_fn.last_info["update"] == "warm"
+    x, _, _ = loss_fn.penalised_points()
+    np.testing.assert_allclose(x.numpy(), [[0.01, 0.0]], atol=1e-6)
+    assert float(loss) == pytest.approx(float(f(x)[0]), abs=1e-10)
+    # a drastic change: the disks merge, the saddle disappears -> full rebuild
+    shift[0], shift[1] = 0.6, 0.0
+    loss = loss_fn(f, None)
+    assert loss_fn.last_info["update"] == "full"
+    assert loss_fn.last_info["n_components"] == [1] and float(loss) == 0.0
+
+
+def test_state_dict_round_trip():
+    f = blobs([[-0.45, -0.2], [0.5, 0.25]], 0.25)
+    a = ConnectednessLoss(BOX2, None, ConnectednessConfig(every=10), dtype=DT, options=TIGHT)
+    la = a(f, None)
+    state = a.state_dict()
+    assert all(isinstance(v, torch.Tensor) for v in state.values())
+    b = ConnectednessLoss(BOX2, None, ConnectednessConfig(every=10), dtype=DT, options=TIGHT)
+    b.load_state_dict(state)
+    lb = b(f, None)
+    assert b.last_info["update"] == "full"
+    assert float(lb) == pytest.approx(float(la), abs=1e-10)
+    assert int(b.state_dict()["step"]) == 2
+
+
+# --- persistent homology --------------------------------------------------------------------
+
+
+def test_death_points_of_a_small_array():
+    a = np.ones((5, 9))
+    a[2, 1], a[2, 7] = -1.0, -2.0
+    a[2, 2:7] = [0.2, 0.2, 0.5, 0.3, 0.3]
+    dp = death_points(a)
+    assert dp.n_components == 2
+    np.testing.assert_array_equal(dp.index, [[2, 4]])
+    np.testing.assert_allclose(dp.value, [0.5])
+    np.testing.assert_allclose(dp.birth, [-1.0])
+
+
+def test_persistent_homology_finds_the_same_saddle():
+    f = blobs([[-0.45, -0.2], [0.5, 0.25]], 0.25)
+    cfg = ConnectednessConfig(method="persistent-homology", grid=65)
+    ph = make_connectedness_loss(BOX2, None, cfg, dtype=DT)
+    loss = ph(f, None)
+    x, _, p = ph.last_points
+    h = 2.0 / 64
+    assert x.shape == (1, 2)
+    assert np.abs(x[0].numpy() - [0.025, 0.025]).max() <= h
+    np.testing.assert_allclose(p.numpy(), [1.0])
+    assert ph.last_info["n_components"] == [2]
+    assert float(loss) == pytest.approx(float(f(x)[0]), abs=1e-12)
+    refined = make_connectedness_loss(BOX2, None, cfg, dtype=DT, options=PersistenceOptions(refine_steps=8))
+    refined(f, None)
+    np.testing.assert_allclose(refined.last_points[0][0].numpy(), [0.025, 0.025], atol=1e-4)
+
+
+def test_factory_switch():
+    sn = make_connectedness_loss(BOX2, None, ConnectednessConfig(), dtype=DT)
+    assert isinstance(sn, ConnectednessLoss)
+    with pytest.raises(ValueError):
+        make_connectedness_loss(BOX2, None, ConnectednessConfig().model_copy(update={"method": "nope"}))
+
+
+# --- component counting ---------------------------------------------------------------------
+
+
+def test_label_components_2d_and_3d():
+    m = np.zeros((6, 6), dtype=bool)
+    m[0:2, 0:2] = True
+    m[3:6, 4] = True
+    m[2, 2] = True  # touches the first block only diagonally
+    labels, n = label_components(m)
+    assert n == 3 and b0_of_mask(m) == 3 and b0_of_mask(m, connectivity=2) == 2
+    np.testing.assert_array_equal(np.sort(component_sizes(labels, n)), [1, 3, 4])
+    v = np.zeros((4, 4, 4), dtype=bool)
+    v[0, 0, 0] = v[3, 3, 3] = v[0, 3, 0] = True
+    v[1, 3, 0] = True
+    assert b0_of_mask(v) == 3
+    assert b0_of_mask(np.zeros((3, 3), dtype=bool)) == 0
+
+
+def test_count_components_with_region():
+    vals = np.array([[-1, 1, -1, 1, -1]], dtype=float)
+    assert count_components(vals) == 3
+    assert count_components(vals, region_mask=np.array([[1, 1, 1, 0, 0]], dtype=bool)) == 2
+    assert count_components(vals, level=1.0) == 1
+
+
+def test_b0_of_fields():
+    f2 = blobs([[-0.5, 0.0], [0.5, 0.0]], 0.25)
+    f3 = blobs([[-0.7, 0.0], [0.0, 0.0], [0.8, 0.0]], 0.2)
+    assert b0(f2, None, BOX2, 64).tolist() == [2]
+    assert b0(f3, None, BOX2, 64).tolist() == [3]
+    assert b0(f3, None, BOX2, 64, region=_HalfPlane(-0.3)).tolist() == [2]
+    s3 = blobs([[-0.45, 0.1, -0.1], [0.45, -0.1, 0.2]], 0.25)
+    assert b0(s3, None, BOX3, 24).tolist() == [2]
+
+    def batched(x, z):
+        return f2(x) - 0.3 * z[:, 0]  # z = 1 grows both disks until they touch
+
+    assert b0(batched, torch.tensor([[0.0], [1.0]], dtype=DT), BOX2, 64).tolist() == [2, 1]
