@@ -315,7 +315,7 @@ class MeshRegion(Region):
         return float(self.mesh.volume)
 
     def bounds(self):
-        b = torch.as_tensor(np.asarray(self.mesh.bounds), dtype=torch.float64)
+        b = torch.tensor(np.array(self.mesh.bounds, dtype=np.float64))
         return b[0].clone(), b[1].clone()
 
 
@@ -386,5 +386,5 @@ class MeshInterface(Interface):
         return torch.from_numpy(self._face_component[f]).to(device=x.device, dtype=torch.long)
 
     def bounds(self):
-        b = torch.as_tensor(np.asarray(self.mesh.bounds), dtype=torch.float64)
+        b = torch.tensor(np.array(self.mesh.bounds, dtype=np.float64))
         return b[0].clone(), b[1].clone()

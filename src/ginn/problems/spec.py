@@ -13,7 +13,17 @@ import math
 from pathlib import Path
 from typing import Annotated, Any, ClassVar, Literal, Union
 
-from pydantic import AfterValidator, BaseModel, ConfigDict, Field, PrivateAttr, ValidationError, ValidationInfo, model_validator
+from pydantic import (
+    AfterValidator,
+    BaseModel,
+    ConfigDict,
+    Field,
+    PrivateAttr,
+    ValidationError,
+    ValidationInfo,
+    field_validator,
+    model_validator,
+)
 
 from ..errors import ConfigError, SpecError
 from ..geometry import csg, interfaces as itf, primitives as prim
@@ -113,15 +123,24 @@ class _Shape(_Node):
 # --- regions -------------------------------------------------------------------------------------
 
 
+def _built(path: str, fn):
+    """Run a constructor; a ValueError becomes a one-line SpecError naming ``path``."""
+    try:
+        return fn()
+    except ValueError as e:
+        raise SpecError(f"spec field '{path}': {e}") from None
+
+
 class RegionNode(_Shape):
-    def make(self, dim: int, base_dir: Path) -> Region:
-        r = self._make(dim, base_dir)
+    def make(self, dim: int, base_dir: Path, path: str = "region") -> Region:
+        """The geometry object; errors are SpecErrors naming ``path`` (this node's field path)."""
+        r = self._make(dim, base_dir, path)
         if self.transform is not None:
             R, t = self.transform.matrices(dim)
-            r = csg.Transformed(r, R, t)
+            r = _built(f"{path}.transform", lambda: csg.Transformed(r, R, t))
         return r
 
-    def _make(self, dim: int, base_dir: Path) -> Region:  # pragma: no cover - abstract
+    def _make(self, dim: int, base_dir: Path, path: str) -> Region:  # pragma: no cover - abstract
         raise NotImplementedError
 
 
@@ -141,8 +160,8 @@ class BoxNode(RegionNode):
     def _check(self, info):
         _lo_hi(self.lo, self.hi)
 
-    def _make(self, dim, base_dir):
-        return prim.AABox(self.lo, self.hi)
+    def _make(self, dim, base_dir, path):
+        return _built(path, lambda: prim.AABox(self.lo, self.hi))
 
 
 class RectangleNode(BoxNode):
@@ -157,8 +176,8 @@ class BallNode(RegionNode):
     center: Point
     radius: Positive
 
-    def _make(self, dim, base_dir):
-        return prim.Ball(self.center, self.radius)
+    def _make(self, dim, base_dir, path):
+        return _built(path, lambda: prim.Ball(self.center, self.radius))
 
 
 class DiskNode(BallNode):
@@ -178,8 +197,8 @@ class PolygonNode(RegionNode):
     vertices: Annotated[list[Point2], Field(min_length=3)]
     dims_allowed: ClassVar[tuple[int, ...]] = (2,)
 
-    def _make(self, dim, base_dir):
-        return prim.Polygon(self.vertices)
+    def _make(self, dim, base_dir, path):
+        return _built(path, lambda: prim.Polygon(self.vertices))
 
 
 class HalfSpaceNode(RegionNode):
@@ -189,8 +208,8 @@ class HalfSpaceNode(RegionNode):
     point: Point
     normal: Direction
 
-    def _make(self, dim, base_dir):
-        return prim.HalfSpace(self.point, self.normal)
+    def _make(self, dim, base_dir, path):
+        return _built(path, lambda: prim.HalfSpace(self.point, self.normal))
 
 
 class CylinderNode(RegionNode):
@@ -203,8 +222,8 @@ class CylinderNode(RegionNode):
     length: Positive
     dims_allowed: ClassVar[tuple[int, ...]] = (3,)
 
-    def _make(self, dim, base_dir):
-        return prim.Cylinder(self.center, self.axis, self.radius, self.length)
+    def _make(self, dim, base_dir, path):
+        return _built(path, lambda: prim.Cylinder(self.center, self.axis, self.radius, self.length))
 
 
 class ExtrusionNode(RegionNode):
@@ -220,8 +239,8 @@ class ExtrusionNode(RegionNode):
         if not self.z0 < self.z1:
             raise ValueError(f"z0 = {self.z0} must be below z1 = {self.z1}")
 
-    def _make(self, dim, base_dir):
-        return prim.Extrusion(prim.Polygon(self.vertices), self.z0, self.z1)
+    def _make(self, dim, base_dir, path):
+        return _built(path, lambda: prim.Extrusion(prim.Polygon(self.vertices), self.z0, self.z1))
 
 
 def _resolve(path: str, info: ValidationInfo) -> str:
@@ -247,31 +266,38 @@ class MeshNode(RegionNode):
     scale: Positive | None = None
     dims_allowed: ClassVar[tuple[int, ...]] = (3,)
 
-    def _make(self, dim, base_dir):
-        return MeshRegion(load_mesh(self.path, self.center, self.scale))
+    def _make(self, dim, base_dir, path):
+        mesh = _built(f"{path}.path", lambda: load_mesh(self.path, self.center, self.scale))
+        return _built(path, lambda: MeshRegion(mesh))
 
 
 class _CSGNode(RegionNode):
     children: list["RegionSpec"]
     min_children: ClassVar[int] = 1
 
-    def _check(self, info):
-        if len(self.children) < self.min_children:
-            raise ValueError(f"needs at least {self.min_children} children, got {len(self.children)}")
+    @field_validator("children")
+    @classmethod
+    def _count(cls, v: list) -> list:
+        if len(v) < cls.min_children:
+            raise ValueError(f"needs at least {cls.min_children} child{'ren' if cls.min_children > 1 else ''}, got {len(v)}")
+        return v
+
+    def _kids(self, dim, base_dir, path) -> list[Region]:
+        return [c.make(dim, base_dir, f"{path}.children[{i}]") for i, c in enumerate(self.children)]
 
 
 class UnionNode(_CSGNode):
     type: Literal["union"]
 
-    def _make(self, dim, base_dir):
-        return csg.Union(*[c.make(dim, base_dir) for c in self.children])
+    def _make(self, dim, base_dir, path):
+        return csg.Union(*self._kids(dim, base_dir, path))
 
 
 class IntersectionNode(_CSGNode):
     type: Literal["intersection"]
 
-    def _make(self, dim, base_dir):
-        return csg.Intersection(*[c.make(dim, base_dir) for c in self.children])
+    def _make(self, dim, base_dir, path):
+        return csg.Intersection(*self._kids(dim, base_dir, path))
 
 
 class DifferenceNode(_CSGNode):
@@ -280,8 +306,8 @@ class DifferenceNode(_CSGNode):
     type: Literal["difference"]
     min_children: ClassVar[int] = 2
 
-    def _make(self, dim, base_dir):
-        parts = [c.make(dim, base_dir) for c in self.children]
+    def _make(self, dim, base_dir, path):
+        parts = self._kids(dim, base_dir, path)
         return csg.Difference(parts[0], *parts[1:])
 
 
@@ -302,14 +328,15 @@ REGION_TYPES = ("box", "rectangle", "ball", "disk", "sphere", "polygon", "halfsp
 
 
 class InterfaceNode(_Shape):
-    def make(self, dim: int, base_dir: Path) -> Interface:
-        i = self._make(dim, base_dir)
+    def make(self, dim: int, base_dir: Path, path: str = "interface") -> Interface:
+        """The interface object; errors are SpecErrors naming ``path``."""
+        i = self._make(dim, base_dir, path)
         if self.transform is not None:
             R, t = self.transform.matrices(dim)
-            i = itf.TransformedInterface(i, R, t)
+            i = _built(f"{path}.transform", lambda: itf.TransformedInterface(i, R, t))
         return i
 
-    def _make(self, dim: int, base_dir: Path) -> Interface:  # pragma: no cover - abstract
+    def _make(self, dim: int, base_dir: Path, path: str) -> Interface:  # pragma: no cover - abstract
         raise NotImplementedError
 
 
@@ -325,8 +352,8 @@ class SegmentNode(InterfaceNode):
         if self.a == self.b:
             raise ValueError("a and b must differ")
 
-    def _make(self, dim, base_dir):
-        return itf.Segment(self.a, self.b, self.normal)
+    def _make(self, dim, base_dir, path):
+        return _built(path, lambda: itf.Segment(self.a, self.b, self.normal))
 
 
 class PolylineNode(InterfaceNode):
@@ -352,8 +379,8 @@ class PolylineNode(InterfaceNode):
             return
         raise ValueError(f"normal must be omitted, 'left', 'right', one {d}D vector or {m} of them (one per segment)")
 
-    def _make(self, dim, base_dir):
-        return itf.Polyline(self.points, self.closed, self.normal)
+    def _make(self, dim, base_dir, path):
+        return _built(path, lambda: itf.Polyline(self.points, self.closed, self.normal))
 
 
 NormalDir = Literal["inward", "outward", "none"]
@@ -368,8 +395,8 @@ class CircleNode(InterfaceNode):
     normals: NormalDir = "inward"
     dims_allowed: ClassVar[tuple[int, ...]] = (2,)
 
-    def _make(self, dim, base_dir):
-        return itf.Circle(self.center, self.radius, self.normals)
+    def _make(self, dim, base_dir, path):
+        return _built(path, lambda: itf.Circle(self.center, self.radius, self.normals))
 
 
 class CylinderWallNode(InterfaceNode):
@@ -383,8 +410,8 @@ class CylinderWallNode(InterfaceNode):
     normals: NormalDir = "inward"
     dims_allowed: ClassVar[tuple[int, ...]] = (3,)
 
-    def _make(self, dim, base_dir):
-        return itf.CylinderWall(self.center, self.axis, self.radius, self.length, self.normals)
+    def _make(self, dim, base_dir, path):
+        return _built(path, lambda: itf.CylinderWall(self.center, self.axis, self.radius, self.length, self.normals))
 
 
 class AnnulusNode(InterfaceNode):
@@ -402,8 +429,8 @@ class AnnulusNode(InterfaceNode):
         if not self.r_inner < self.r_outer:
             raise ValueError(f"r_inner = {self.r_inner} must be below r_outer = {self.r_outer}")
 
-    def _make(self, dim, base_dir):
-        return itf.Annulus(self.center, self.normal, self.r_inner, self.r_outer, self.normals)
+    def _make(self, dim, base_dir, path):
+        return _built(path, lambda: itf.Annulus(self.center, self.normal, self.r_inner, self.r_outer, self.normals))
 
 
 class MeshInterfaceNode(InterfaceNode):
@@ -417,8 +444,9 @@ class MeshInterfaceNode(InterfaceNode):
     normals: Literal["faces", "flipped", "none"] = "faces"
     dims_allowed: ClassVar[tuple[int, ...]] = (3,)
 
-    def _make(self, dim, base_dir):
-        return MeshInterface(load_mesh(self.path, self.center, self.scale), self.normals)
+    def _make(self, dim, base_dir, path):
+        mesh = _built(f"{path}.path", lambda: load_mesh(self.path, self.center, self.scale))
+        return _built(path, lambda: MeshInterface(mesh, self.normals))
 
 
 class GroupNode(InterfaceNode):
@@ -427,12 +455,15 @@ class GroupNode(InterfaceNode):
     type: Literal["group"]
     parts: list["InterfaceSpec"]
 
-    def _check(self, info):
-        if not self.parts:
+    @field_validator("parts")
+    @classmethod
+    def _count(cls, v: list) -> list:
+        if not v:
             raise ValueError("needs at least 1 part, got 0")
+        return v
 
-    def _make(self, dim, base_dir):
-        return itf.InterfaceUnion([p.make(dim, base_dir) for p in self.parts], merge=True)
+    def _make(self, dim, base_dir, path):
+        return _built(path, lambda: itf.InterfaceUnion([p.make(dim, base_dir) for p in self.parts], merge=True))
 
 
 InterfaceSpec = Annotated[
@@ -482,17 +513,18 @@ class ProblemSpec(BaseModel):
     name: Annotated[str, Field(min_length=1, pattern=r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")]
     kind: Literal["shape", "mirror", "gray-scott"] = "shape"
     description: str = ""
-    geometry: GeometrySpec | None = None
+    geometry: GeometrySpec | None = Field(default=None, validate_default=True)
     defaults: dict[str, Any] = Field(default_factory=dict)
     presets: dict[str, dict[str, Any]] = Field(default_factory=dict)
     _base_dir: Path | None = PrivateAttr(default=None)
     _source: str = PrivateAttr(default="")
 
-    @model_validator(mode="after")
-    def _needs_geometry(self):
-        if self.kind == "shape" and self.geometry is None:
-            raise ValueError("a 'shape' problem needs 'geometry'")
-        return self
+    @field_validator("geometry")
+    @classmethod
+    def _needs_geometry(cls, v, info: ValidationInfo):
+        if v is None and info.data.get("kind", "shape") == "shape":
+            raise ValueError("required for a 'shape' problem")
+        return v
 
     @property
     def source(self) -> str:
@@ -534,10 +566,7 @@ class ProblemSpec(BaseModel):
         domain = Box(tuple(float(v) for v in g.domain.lo), tuple(float(v) for v in g.domain.hi))
 
         def make(node, path: str):
-            try:
-                return node.make(dim, base)
-            except ValueError as e:
-                raise SpecError(f"spec field '{path}': {e}") from None
+            return node.make(dim, base, path)
 
         design = make(g.design_region, "geometry.design_region") if g.design_region is not None else None
         obstacles = tuple(make(o, f"geometry.obstacles[{i}]") for i, o in enumerate(g.obstacles))
@@ -673,6 +702,7 @@ def _check_configs(spec: ProblemSpec) -> None:
             text = str(e)
             if text.startswith("config field '"):
                 inner, _, rest = text[len("config field '"):].partition("'")
+                rest = rest.replace("Value error, ", "")
                 raise SpecError(f"spec field '{prefix}.{inner}'{rest}") from None
             raise SpecError(f"spec field '{prefix}': {text}") from None
 
