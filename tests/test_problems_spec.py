@@ -261,3 +261,11 @@ def test_relative_mesh_paths_resolve_against_the_spec_file(tmp_path, gen):
     assert (xs.abs().max(-1).values - 0.1).abs().max() < 1e-7  # STL stores float32
     # flipped normals point into the pad
     assert ((xs * n).sum(-1) < 0).all()
+
+
+def test_docs_embed_the_example_verbatim():
+    """docs/problem-spec.md shows docs/examples/plate.yaml (minus its leading comment) verbatim."""
+    doc = (REPO / "docs" / "problem-spec.md").read_text()
+    example = (REPO / "docs" / "examples" / "plate.yaml").read_text()
+    body = "".join(line for line in example.splitlines(keepends=True) if not line.startswith("# A user-defined") and not line.startswith("# on a bottom edge"))
+    assert body.strip() in doc
