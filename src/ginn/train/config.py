@@ -137,6 +137,7 @@ class TrainingConfig(_Strict):
     checkpoint_every: int = Field(200, ge=1)
     max_bad_steps: int = Field(5, ge=1, description="consecutive non-finite steps before rolling back")
     rollback_lr_factor: float = Field(0.5, gt=0, lt=1)
+    max_rollbacks: int = Field(3, ge=0, description="give up (error) after this many rollbacks")
     dtype: Literal["float32", "float64"] = "float32"
     threads: int = Field(0, ge=0, description="torch CPU threads (0: leave the default)")
 

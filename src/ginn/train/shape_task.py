@@ -1,0 +1,247 @@
+"""Training task of a shape problem (obstacle, bracket, Plateau, user specs): the GINN losses.
+
+Per iteration and shape, fresh samples: uniform points in X (eikonal), points in X \\ E (design
+region), inside obstacles, on the interfaces (interface and normal), optionally in a band around
+the interfaces. All shapes and all point sets go through the network in one batched pass with
+gradients; Hessians are taken only at boundary points (curvature, strain), which are found by
+projecting the domain samples closest to ``f = 0`` onto the zero level set.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import torch
+from torch import Tensor, nn
+
+from .. import fields
+from ..geometry import sampling
+from ..latents import fixed_latents, latent_dim, random_latents
+from ..levelset import project_to_zero
+from ..losses import constraints as C
+from ..losses.diversity import diversity
+from ..models.factory import build_model
+from ..problems.problem import Problem
+from .config import LossTerm, RunConfig
+from .task import Task
+
+
+class ShapeTask(Task):
+    """A GINN shape problem: a (generative) implicit shape trained from constraints.
+
+    Arguments:
+        problem: the geometry (domain, design region, interfaces, obstacles).
+        cfg, device, dtype: see :class:`ginn.train.task.Task`.
+    """
+
+    kind = "shape"
+
+    def __init__(self, problem: Problem, cfg: RunConfig, device, dtype):
+        super().__init__(cfg, device, dtype)
+        self.problem = problem
+        self.d = problem.dim
+        self.Z = fixed_latents(cfg.latents, self.device, dtype)
+        self.lo, self.hi = problem.domain.tensors(self.device, dtype)
+        self._conn = None
+        self._iface_cloud: Tensor | None = None
+        s = cfg.sampling
+        self.design_loss = C.DesignRegionLoss()
+        self.obstacle_loss = C.ObstacleLoss()
+        self.interface_loss = C.InterfaceLoss()
+        self.normal_loss = C.NormalLoss()
+        self.eikonal_loss = C.EikonalLoss()
+        self.curv_loss = C.MeanCurvatureLoss()
+        self.strain_loss = C.StrainLoss(clip=s.strain_clip)
+        self.has_normals = any(getattr(i, "has_normals", True) for i in problem.interfaces)
+        corners = [getattr(i, "corners", None) for i in problem.interfaces]
+        corners = [c for c in corners if c is not None and len(c) > 0]
+        self.corners = (
+            torch.cat([torch.as_tensor(c, dtype=dtype) for c in corners]).to(self.device) if corners else None
+        )
+
+    # --- Task API ----------------------------------------------------------------------------
+
+    def build_model(self) -> nn.Module:
+        return build_model(self.cfg.model, self.d, latent_dim(self.cfg.latents))
+
+    def terms(self) -> dict[str, LossTerm]:
+        L = self.cfg.losses
+        out = {
+            "interface": L.interface,
+            "eikonal": L.eikonal,
+            "mean_curvature": L.mean_curvature,
+            "strain": L.strain,
+            "connectedness": L.connectedness,
+        }
+        if self.problem.design_region is not None:
+            out["design_region"] = L.design_region
+        if self.problem.obstacles:
+            out["obstacle"] = L.obstacle
+        if self.has_normals:
+            out["normal"] = L.normal
+        if self.cfg.latents.n_shapes > 1:
+            out["diversity"] = L.diversity
+        if not self.problem.interfaces:
+            out.pop("interface")
+        return out
+
+    def latents(self) -> Tensor | None:
+        return self.Z
+
+    def state_dict(self) -> dict:
+        return {"connectedness": self._conn.state_dict()} if self._conn is not None else {}
+
+    def load_state_dict(self, state: dict) -> None:
+        if "connectedness" in state and state["connectedness"]:
+            self.connectedness_loss().load_state_dict(state["connectedness"])
+
+    def connectedness_loss(self):
+        if self._conn is None:
+            from ..topology.connectedness import make_connectedness_loss
+
+            self._conn = make_connectedness_loss(
+                self.problem.domain,
+                self.problem.design_region if self.cfg.connectedness.restrict_to_design_region else None,
+                self.cfg.connectedness,
+                self.device,
+                self.dtype,
+            )
+        return self._conn
+
+    # --- sampling ----------------------------------------------------------------------------
+
+    def _step_latents(self, gen: torch.Generator) -> Tensor | None:
+        if self.cfg.latents.n_shapes == 1:
+            return None
+        if self.cfg.latents.random:
+            return random_latents(self.cfg.latents, gen, self.device, self.dtype)
+        return self.Z
+
+    def sample(self, S: int, active: set[str], gen: torch.Generator) -> dict[str, Tensor]:
+        """Fresh per-shape samples, each ``(S, n, d)`` (normals ``(S, n, d)``)."""
+        s, p, kw = self.cfg.sampling, self.problem, dict(device=self.device, dtype=self.dtype)
+        d = self.d
+        out: dict[str, Tensor] = {}
+        out["domain"] = sampling.sample_box(p.domain, S * s.n_domain, gen, **kw).reshape(S, -1, d)
+        if "design_region" in active and s.n_outside > 0:
+            out["outside"] = sampling.sample_outside(p.design_region, p.domain, S * s.n_outside, gen, **kw).reshape(S, -1, d)
+        if "obstacle" in active and s.n_obstacle > 0:
+            obs = [sampling.sample_inside(o, p.domain, S * s.n_obstacle // len(p.obstacles), gen, **kw) for o in p.obstacles]
+            out["obstacle"] = torch.cat([o.reshape(S, -1, d) for o in obs], dim=1)
+        if p.interfaces and ({"interface", "normal"} & active):
+            xi, ni = sampling.sample_interfaces(p.interfaces, S * s.n_interface, gen, **kw)
+            out["interface"], out["normals"] = xi.reshape(S, -1, d), ni.reshape(S, -1, d)
+        if s.n_band > 0 and p.interfaces and p.interface_band > 0:
+            out["band"] = sampling.sample_band(p.interfaces, S * s.n_band, p.interface_band, gen, **kw).reshape(S, -1, d)
+        return out
+
+    # --- losses ------------------------------------------------------------------------------
+
+    def loss_terms(self, model: nn.Module, step: int, active: set[str], gen: torch.Generator) -> dict[str, Tensor]:
+        Z = self._step_latents(gen)
+        S = 1 if Z is None else Z.shape[0]
+        pts = self.sample(S, active, gen)
+        names = [k for k in ("domain", "band", "interface", "outside", "obstacle") if k in pts]
+        sizes = [pts[k].shape[1] for k in names]
+        X = torch.cat([pts[k] for k in names], dim=1)  # (S, N, d)
+        N = X.shape[1]
+        if Z is None:
+            Xf, Zf = X.reshape(-1, self.d), None
+        else:
+            Xf, Zf = fields.broadcast_latents(X, Z)
+        v = fields.evaluate(model, Xf, Zf, grad=True, create_graph=True)
+        f = v.f.reshape(S, N)
+        g = v.grad.reshape(S, N, self.d)
+        part_f = dict(zip(names, torch.split(f, sizes, dim=1)))
+        part_g = dict(zip(names, torch.split(g, sizes, dim=1)))
+        out: dict[str, Tensor] = {}
+        if "eikonal" in active:
+            ge = part_g["domain"] if "band" not in part_g else torch.cat([part_g["domain"], part_g["band"]], dim=1)
+            out["eikonal"] = self.eikonal_loss(ge.reshape(-1, self.d))
+        if "design_region" in active and "outside" in part_f:
+            out["design_region"] = self.design_loss(part_f["outside"].reshape(-1))
+        if "obstacle" in active and "obstacle" in part_f:
+            out["obstacle"] = self.obstacle_loss(part_f["obstacle"].reshape(-1))
+        if "interface" in active:
+            fi = part_f["interface"].reshape(-1)
+            if self.corners is not None and self.cfg.sampling.interface_corner_weight > 1:
+                fc = self._corner_values(model, Z)
+                w = torch.cat([torch.ones_like(fi), torch.full_like(fc, self.cfg.sampling.interface_corner_weight)])
+                out["interface"] = self.interface_loss(torch.cat([fi, fc]), w)
+            else:
+                out["interface"] = self.interface_loss(fi)
+        if "normal" in active:
+            ni = pts["normals"].reshape(-1, self.d)
+            has = ni.norm(dim=-1) > 0.5
+            out["normal"] = self.normal_loss(part_g["interface"].reshape(-1, self.d)[has], ni[has])
+        need_boundary = {"mean_curvature", "strain", "diversity"} & active
+        if need_boundary:
+            xb, mask = self.boundary_points(model, Z, pts["domain"], part_f["domain"], part_g["domain"])
+            out.update(self._boundary_losses(model, Z, xb, mask, active))
+        if "connectedness" in active:
+            out["connectedness"] = self.connectedness_loss()(model, Z)
+        return out
+
+    def _corner_values(self, model: nn.Module, Z: Tensor | None) -> Tensor:
+        c = self.corners
+        if Z is None:
+            return model(c, None)
+        Xc, Zc = fields.broadcast_latents(c, Z)
+        return model(Xc, Zc)
+
+    def boundary_points(
+        self, model: nn.Module, Z: Tensor | None, xd: Tensor, fd: Tensor, gd: Tensor
+    ) -> tuple[Tensor, Tensor]:
+        """Per-shape points on ``f = 0``: the ``n_boundary`` domain samples with the smallest
+        ``|f| / |grad f|`` (distance estimate), projected by Newton steps.
+
+        Returns points ``(S, m, d)`` (detached) and a validity mask ``(S, m)``.
+        """
+        S = xd.shape[0]
+        m = min(self.cfg.sampling.n_boundary, xd.shape[1])
+        with torch.no_grad():
+            dist = fd.abs() / gd.norm(dim=-1).clamp_min(1e-6)
+            idx = dist.topk(m, dim=1, largest=False).indices  # (S, m)
+            x0 = torch.gather(xd.detach(), 1, idx[:, :, None].expand(S, m, self.d))
+        if Z is None:
+            proj = project_to_zero(model, x0.reshape(-1, self.d), None, steps=self.cfg.sampling.projection_steps,
+                                   tol=1e-3, bounds=(self.lo, self.hi))
+        else:
+            Xf, Zf = fields.broadcast_latents(x0, Z)
+            proj = project_to_zero(model, Xf, Zf, steps=self.cfg.sampling.projection_steps, tol=1e-3, bounds=(self.lo, self.hi))
+        return proj.x.reshape(S, m, self.d), proj.converged.reshape(S, m)
+
+    def _boundary_losses(self, model, Z, xb: Tensor, mask: Tensor, active: set[str]) -> dict[str, Tensor]:
+        out: dict[str, Tensor] = {}
+        S, m, d = xb.shape
+        out["_boundary_converged"] = mask.float().mean()
+        if {"mean_curvature", "strain"} & active:
+            sel = mask
+            Xf = xb.reshape(-1, d)
+            Zf = None if Z is None else Z[:, None, :].expand(S, m, Z.shape[-1]).reshape(-1, Z.shape[-1])
+            v = fields.evaluate(model, Xf, Zf, grad=False, hessian_at=sel.reshape(-1), create_graph=True)
+            gh, hh = v.hessian_grad, v.hessian
+            if "mean_curvature" in active:
+                out["mean_curvature"] = self.curv_loss(gh, hh)
+            if "strain" in active:
+                keep = self._away_from_interfaces(Xf[v.hessian_index])
+                out["strain"] = self.strain_loss(gh[keep], hh[keep])
+        if "diversity" in active and Z is not None:
+            dv = self.cfg.diversity
+            out["diversity"] = -diversity(model, xb, Z, mask, kind=dv.aggregation, p=dv.p)
+        return out
+
+    def _away_from_interfaces(self, x: Tensor) -> Tensor:
+        c = self.cfg.sampling.strain_interface_clearance
+        if c <= 0 or not self.problem.interfaces:
+            return torch.ones(x.shape[0], dtype=torch.bool, device=x.device)
+        if self._iface_cloud is None:  # a dense fixed sample of I, for distances
+            g = torch.Generator(device=self.device).manual_seed(12345)
+            self._iface_cloud, _ = sampling.sample_interfaces(self.problem.interfaces, 20000, g, device=self.device, dtype=self.dtype)
+        dist = torch.cdist(x.detach(), self._iface_cloud).min(dim=1).values
+        return dist > c
+
+    def finalize(self, model: nn.Module, run_dir: Path) -> list[Path]:
+        from ..results import write_shape_results
+
+        return write_shape_results(model, self.Z, self.problem, self.cfg, run_dir)

@@ -1,0 +1,273 @@
+"""The generic training loop: Adam, exponential schedule, clipping, balancing, checkpoints.
+
+Reliability guarantees:
+
+* A non-finite loss or gradient never reaches the weights: the step is skipped and logged. After
+  ``max_bad_steps`` consecutive bad steps the run rolls back to the last checkpoint and continues
+  with the learning rate multiplied by ``rollback_lr_factor``.
+* SIGINT / SIGTERM finish the current step, write a checkpoint and stop cleanly (status
+  ``"interrupted"``); ``ginn resume RUN_DIR`` continues. After ``kill -9`` at most
+  ``checkpoint_every`` iterations are lost.
+* On CPU, resuming reproduces an uninterrupted run bitwise: the checkpoint holds the model,
+  optimiser, scheduler, balancer, task state (e.g. critical points) and every RNG state.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import signal
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import torch
+from torch import nn
+
+from ..errors import GinnError
+from .balancing import make_balancer
+from .checkpoint import load_checkpoint, rng_state, save_checkpoint, set_rng_state
+from .config import RunConfig
+from .task import Task
+
+class TrainingDiverged(GinnError):
+    """Non-finite losses persist even after rolling back with lower learning rates."""
+
+
+DTYPES = {"float32": torch.float32, "float64": torch.float64}
+
+
+@dataclass
+class TrainResult:
+    """What :meth:`Trainer.train` returns."""
+
+    model: nn.Module
+    status: str  # "completed" | "interrupted"
+    step: int
+    seconds: float
+    last_losses: dict[str, float]
+
+
+class _StopFlag:
+    def __init__(self) -> None:
+        self.stop = False
+        self.signum: int | None = None
+        self._old: dict[int, object] = {}
+
+    def __enter__(self) -> "_StopFlag":
+        for s in (signal.SIGINT, signal.SIGTERM):
+            try:
+                self._old[s] = signal.signal(s, self._handle)
+            except ValueError:  # not in the main thread
+                pass
+        return self
+
+    def _handle(self, signum, frame) -> None:
+        if self.stop and signum == signal.SIGINT:  # second Ctrl-C: give up at once
+            raise KeyboardInterrupt
+        self.stop, self.signum = True, signum
+
+    def __exit__(self, *exc) -> None:
+        for s, h in self._old.items():
+            signal.signal(s, h)
+
+
+class Trainer:
+    """Trains one :class:`Task`.
+
+    Arguments:
+        task: the problem (builds the model, returns unweighted loss terms).
+        cfg: the resolved run configuration.
+        run_dir: where metrics.jsonl and checkpoints go (None: nothing is written).
+        progress: show a progress bar.
+        hooks: optional callables ``hook(trainer, step, losses)`` run after each step.
+    """
+
+    def __init__(
+        self,
+        task: Task,
+        cfg: RunConfig,
+        run_dir: str | Path | None = None,
+        progress: bool = True,
+        hooks: list[Callable] | None = None,
+    ):
+        self.task, self.cfg = task, cfg
+        self.run_dir = Path(run_dir) if run_dir is not None else None
+        if self.run_dir is not None:
+            self.run_dir.mkdir(parents=True, exist_ok=True)
+        self.progress = progress
+        self.hooks = hooks or []
+        self.device = torch.device(cfg.device)
+        self.dtype = DTYPES[cfg.training.dtype]
+        if cfg.training.threads > 0:
+            torch.set_num_threads(cfg.training.threads)
+        torch.manual_seed(cfg.seed)
+        self.gen = torch.Generator(device=self.device).manual_seed(cfg.seed)
+        self.model = task.build_model().to(device=self.device, dtype=self.dtype)
+        t = cfg.training
+        self.optimizer = torch.optim.Adam(self.model.parameters(), lr=t.lr)
+        self.lr_scale = 1.0
+        self.scheduler = torch.optim.lr_scheduler.LambdaLR(
+            self.optimizer, lambda it: t.lr_decay ** (it / t.lr_decay_every)
+        )
+        self.terms = task.terms()
+        self.balancer = make_balancer(self.terms, cfg.balancing)
+        self.step = 0
+        self.bad_steps = 0
+        self.rollbacks = 0
+        self.elapsed = 0.0
+
+    # --- checkpoints -------------------------------------------------------------------------
+
+    @property
+    def checkpoint_path(self) -> Path | None:
+        return None if self.run_dir is None else self.run_dir / "checkpoints" / "last.pt"
+
+    def state_dict(self) -> dict:
+        return {
+            "format": "ginn-checkpoint-1",
+            "step": self.step,
+            "elapsed": self.elapsed,
+            "lr_scale": self.lr_scale,
+            "rollbacks": self.rollbacks,
+            "model": self.model.state_dict(),
+            "optimizer": self.optimizer.state_dict(),
+            "scheduler": self.scheduler.state_dict(),
+            "balancer": self.balancer.state_dict(),
+            "task": self.task.state_dict(),
+            "rng": rng_state(self.gen),
+        }
+
+    def load_state_dict(self, state: dict) -> None:
+        self.model.load_state_dict(state["model"])
+        self.optimizer.load_state_dict(state["optimizer"])
+        self.scheduler.load_state_dict(state["scheduler"])
+        self.balancer.load_state_dict(state["balancer"])
+        self.task.load_state_dict(state["task"])
+        set_rng_state(state["rng"], self.gen)
+        self.step = int(state["step"])
+        self.elapsed = float(state.get("elapsed", 0.0))
+        self.lr_scale = float(state.get("lr_scale", 1.0))
+        self.rollbacks = int(state.get("rollbacks", 0))
+        self._apply_lr_scale()
+
+    def save(self) -> None:
+        if self.checkpoint_path is not None:
+            save_checkpoint(self.checkpoint_path, self.state_dict())
+
+    def resume(self) -> bool:
+        """Load the last checkpoint of ``run_dir`` if there is one. Returns whether it did."""
+        p = self.checkpoint_path
+        if p is None or not p.exists():
+            return False
+        self.load_state_dict(load_checkpoint(p, map_location=self.device))
+        return True
+
+    def _apply_lr_scale(self) -> None:
+        t = self.cfg.training
+        self.scheduler.base_lrs = [t.lr * self.lr_scale for _ in self.scheduler.base_lrs]
+        for g in self.optimizer.param_groups:
+            g["lr"] = t.lr * self.lr_scale * t.lr_decay ** (self.scheduler.last_epoch / t.lr_decay_every)
+
+    def _rollback(self) -> None:
+        if self.rollbacks >= self.cfg.training.max_rollbacks:
+            self._log({"step": self.step, "event": "diverged"})
+            raise TrainingDiverged(
+                f"training diverged: non-finite losses persisted through {self.rollbacks} rollbacks at iteration {self.step}; "
+                "lower training.lr or the loss weights"
+            )
+        rollbacks, scale = self.rollbacks + 1, self.lr_scale * self.cfg.training.rollback_lr_factor
+        p = self.checkpoint_path
+        if p is not None and p.exists():
+            self.load_state_dict(load_checkpoint(p, map_location=self.device))
+        self.rollbacks, self.lr_scale = rollbacks, scale
+        self._apply_lr_scale()
+        self.bad_steps = 0
+        self._log({"step": self.step, "event": "rollback", "lr_scale": self.lr_scale})
+
+    # --- logging -------------------------------------------------------------------------------
+
+    def _log(self, record: dict) -> None:
+        if self.run_dir is None:
+            return
+        with open(self.run_dir / "metrics.jsonl", "a") as fh:
+            fh.write(json.dumps(record) + "\n")
+
+    # --- the loop ------------------------------------------------------------------------------
+
+    def active_terms(self, step: int) -> set[str]:
+        return {k for k, t in self.terms.items() if t.weight > 0 and step >= t.start}
+
+    def train_step(self) -> dict[str, float] | None:
+        """One optimisation step; returns the loss values, or None if the step was skipped."""
+        step = self.step
+        active = self.active_terms(step)
+        self.optimizer.zero_grad(set_to_none=True)
+        losses = self.task.loss_terms(self.model, step, active, self.gen)
+        total = self.balancer.combine({k: v for k, v in losses.items() if k in active}, step)
+        values = {k: float(v.detach()) for k, v in losses.items()}
+        values["total"] = float(total.detach())
+        ok = math.isfinite(values["total"])
+        if ok:
+            total.backward()
+            grads = [p.grad for p in self.model.parameters() if p.grad is not None]
+            gnorm = torch.linalg.vector_norm(torch.stack([torch.linalg.vector_norm(g) for g in grads])) if grads else torch.zeros(())
+            ok = bool(torch.isfinite(gnorm))
+            values["grad_norm"] = float(gnorm)
+        if not ok:
+            self.optimizer.zero_grad(set_to_none=True)
+            self.bad_steps += 1
+            self._log({"step": step, "event": "skipped_non_finite", **{k: v for k, v in values.items() if math.isfinite(v)}})
+            if self.bad_steps >= self.cfg.training.max_bad_steps:
+                self._rollback()
+            return None
+        self.bad_steps = 0
+        if self.cfg.training.grad_clip > 0:
+            nn.utils.clip_grad_norm_(self.model.parameters(), self.cfg.training.grad_clip)
+        self.optimizer.step()
+        self.scheduler.step()
+        self.balancer.observe({k: values[k] for k in active if k in values}, step)
+        self.step += 1
+        return values
+
+    def train(self) -> TrainResult:
+        """Run until ``training.iterations`` (from the current step); handles signals."""
+        t = self.cfg.training
+        total_iters = t.iterations
+        bar = None
+        if self.progress and self.step < total_iters:
+            from tqdm import tqdm
+
+            bar = tqdm(total=total_iters, initial=self.step, dynamic_ncols=True, unit="it", leave=True)
+        last: dict[str, float] = {}
+        status = "completed"
+        t0 = time.perf_counter() - self.elapsed
+        with _StopFlag() as flag:
+            while self.step < total_iters:
+                step = self.step
+                values = self.train_step()
+                self.elapsed = time.perf_counter() - t0
+                if values is not None:
+                    last = values
+                    for h in self.hooks:
+                        h(self, step, values)
+                    if step % t.log_every == 0 or self.step == total_iters:
+                        rec = {"step": step, "time": round(self.elapsed, 3), "lr": self.optimizer.param_groups[0]["lr"]}
+                        rec.update(values)
+                        self._log(rec)
+                    if bar is not None:
+                        bar.update(1)
+                        if step % max(1, t.log_every) == 0:
+                            bar.set_postfix({k: f"{v:.2e}" for k, v in values.items() if not k.startswith("_") and k != "grad_norm"}, refresh=False)
+                if self.step % t.checkpoint_every == 0 and self.step > 0 and values is not None:
+                    self.save()
+                if flag.stop:
+                    status = "interrupted"
+                    break
+        if bar is not None:
+            bar.close()
+        self.save()
+        if status == "interrupted":
+            self._log({"step": self.step, "event": "interrupted", "signal": flag.signum})
+        return TrainResult(self.model, status, self.step, self.elapsed, last)
