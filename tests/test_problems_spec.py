@@ -10,7 +10,7 @@ import trimesh
 
 from ginn.errors import ConfigError, SpecError
 from ginn.geometry import Box, sample_band, sample_box, sample_inside, sample_interfaces, sample_outside
-from ginn.problems import get_spec, list_problems, load_spec, parse_spec, spec_text
+from ginn.problems import get_spec, list_problems, load_spec, parse_spec, problem_summaries, spec_text
 from ginn.train.config import RunConfig
 
 F64 = torch.float64
@@ -22,6 +22,8 @@ def test_list_and_show_builtins():
     for n in ("obstacle", "bracket", "plateau", "mirror", "gray-scott"):
         assert n in names
     assert "name: obstacle" in spec_text("obstacle")
+    summ = {n: (k, d) for n, k, d in problem_summaries()}
+    assert summ["obstacle"][0] == "shape" and "\n" not in summ["obstacle"][1] and summ["mirror"][0] == "mirror"
     for n in names:
         s = get_spec(n)
         assert s.name == n

@@ -51,7 +51,7 @@ def _train_and_finish(trainer, task, run_dir: Path, quiet: bool, results: bool) 
 
 
 def cmd_train(args) -> int:
-    from .problems import load_spec, spec_source
+    from .problems import load_spec
     from .train.registry import make_task, resolve_config
     from .train.run import new_run_dir, write_run_files
     from .train.trainer import Trainer
@@ -70,7 +70,7 @@ def cmd_train(args) -> int:
     cfg = resolve_config(spec, args.preset, over, parse_set(args.sets))
     task = make_task(spec, cfg)
     run_dir = new_run_dir(spec.name, args.out)
-    write_run_files(run_dir, cfg, spec_source(args.problem))
+    write_run_files(run_dir, cfg, Path(spec.source) if Path(spec.source).is_file() else None)
     _say(f"training {spec.name}" + (f" (preset {args.preset})" if args.preset else "") + f" on {cfg.device}; run directory {run_dir}", args.quiet)
     trainer = Trainer(task, cfg, run_dir, progress=not args.quiet)
     return _train_and_finish(trainer, task, run_dir, args.quiet, not args.no_results)
@@ -94,14 +94,13 @@ def cmd_resume(args) -> int:
 
 
 def cmd_problems(args) -> int:
-    from .problems import list_problems, load_spec, spec_source
+    from .problems import list_problems, load_spec, spec_text
 
     if args.action == "show":
         if not args.name:
             raise ConfigError("usage: ginn problems show NAME")
         load_spec(args.name)  # validates
-        src = spec_source(args.name)
-        sys.stdout.write(Path(src).read_text())
+        sys.stdout.write(spec_text(args.name))
         return 0
     for name in list_problems():
         spec = load_spec(name)

@@ -5,7 +5,7 @@ Names (the keys of ``metrics.json``) and estimators:
 * ``volume_outside`` = vol(Omega \\ E) / vol(X \\ E): trapezoid-rule volumes of grid-node masks
   (0 when E fills X).
 * ``boundary_overlap`` = vol(Omega cap dE) / vol(dE): the design region's boundary is sampled
-  (nearly) uniformly by projecting the nodes of a band ``|sdf_E| < h`` (on the grid extended two
+  (nearly) uniformly by projecting the nodes of a band ``|sdf_E| < h`` (on the grid extended four
   nodes beyond X, so the part of dE on the domain faces is sampled like the rest) onto ``sdf_E = 0``
   with two Newton steps (finite-difference gradients); the metric is the fraction of these samples
   with ``f <= 0`` (multilinear interpolation of the grid values, exact near the shape's boundary).
@@ -39,7 +39,7 @@ import torch
 from torch import Tensor
 
 from . import fields
-from .fields import Field
+from .fields import Field, as_field
 from .geometry.base import Box, Region
 from .levelset import project_to_zero
 from .problems.problem import Problem
@@ -176,9 +176,10 @@ def prepare_context(
     grid = make_grid(problem.domain, resolution)
     rng = np.random.default_rng(seed)
     region = problem.design_region if problem.design_region is not None else _BoxRegion(problem.domain)
-    ext = grid.extended(2)
-    sdf_ext = _region_sdf(region, ext.points()).reshape(ext.shape)
-    inner = tuple(slice(2, -2) for _ in range(grid.dim))
+    ext = grid.extended(4)
+    # adaptive: exact |sdf_E| near dE (the band below is inside the refined cells), sign elsewhere
+    sdf_ext = sample_field(as_field(region.sdf), ext, None, dtype=torch.float32, device="cpu")
+    inner = tuple(slice(4, -4) for _ in range(grid.dim))
     in_design = sdf_ext[inner] <= 0
     weights = grid.node_weights()
     vol_E = float(weights[in_design].sum(dtype=np.float64))
@@ -365,7 +366,7 @@ def surface_strain(
     """Equation 7: mean over zero-level-set samples of ``min(kappa_1^2 + kappa_2^2, clip)``.
 
     Samples are area-uniform on the level-set part of the extracted boundary, moved onto ``f = 0``
-    by three Newton steps (each at most ``step_cap`` long); Hessians come from
+    by two Newton steps (each at most ``step_cap`` long); Hessians come from
     :func:`ginn.fields.evaluate` and the strain from :func:`ginn.fields.surface_strain`.
     """
     rng = rng or np.random.default_rng(0)
@@ -378,7 +379,7 @@ def surface_strain(
     dt = dtype or dt
     xt = torch.as_tensor(x, dtype=dt, device=dev)
     zz = None if z is None else z.reshape(1, -1).to(dt).expand(xt.shape[0], -1)
-    proj = project_to_zero(field, xt, zz, steps=3, tol=float("inf"), max_step=step_cap)
+    proj = project_to_zero(field, xt, zz, steps=2, tol=float("inf"), max_step=step_cap)
     xp = torch.where(torch.isfinite(proj.x).all(dim=1, keepdim=True), proj.x, xt)
     v = fields.evaluate(field, xp, zz, grad=False, hessian_at=True, create_graph=False)
     s = fields.surface_strain(v.hessian_grad, v.hessian)

@@ -6,9 +6,10 @@ The shape is ``Omega = {f <= 0}`` restricted to the domain box ``X``.
 * :func:`sample_field` evaluates ``f(., z)`` at every grid node, in chunks. By default it is
   *adaptive*: the field is evaluated exactly on a coarse grid and, level by level, only in the
   cells that may contain the zero level set; elsewhere values are multilinear interpolations whose
-  sign is still right. A cell is refined when ``min |f(corner)| <= safety * G * diag(cell)``, where
-  ``G`` is the largest finite-difference slope seen so far: if ``|grad f| <= safety * G`` in the
-  cell, a zero inside forces every corner to ``|f| <= safety * G * diag``, so no zero is missed.
+  sign is still right. A cell is refined when ``min |f(corner)| <= safety * G * diag(cell) / 2``,
+  where ``G`` is a local finite-difference slope: if ``|grad f| <= safety * G`` in the
+  cell, a zero inside forces the nearest corner to ``|f| <= safety * G * diag / 2``, so no zero is
+  missed. ``G`` is the largest slope along the edges of the cell and of its neighbours.
   ``adaptive=False`` evaluates every node (same result on the tests' random networks).
 * :func:`extract_boundary` runs marching squares / marching cubes (scikit-image) on the values
   padded with a positive layer, so every contour and mesh is closed where the shape meets the
@@ -150,12 +151,12 @@ def field_dtype_device(field: Field, z: Tensor | None = None) -> tuple[torch.dty
 
 
 def _eval_nodes(field: Field, grid: Grid, flat: np.ndarray, z: Tensor | None, dtype, device, chunk: int) -> np.ndarray:
-    out = np.empty(flat.shape[0], dtype=np.float64)
+    out = np.empty(flat.shape[0], dtype=np.float64 if dtype == torch.float64 else np.float32)
     with torch.no_grad():
         for s in range(0, flat.shape[0], chunk):
             x = torch.as_tensor(grid.points(flat[s : s + chunk]), dtype=dtype, device=device)
             zz = None if z is None else z.reshape(1, -1).to(dtype=dtype, device=device).expand(x.shape[0], -1)
-            out[s : s + chunk] = field(x, zz).detach().to("cpu", torch.float64).numpy()
+            out[s : s + chunk] = field(x, zz).detach().to("cpu").numpy()
     return out
 
 
@@ -184,18 +185,26 @@ def _upsample(v: np.ndarray) -> np.ndarray:
     return v
 
 
-def _max_slope(v: np.ndarray, exact: np.ndarray, h: np.ndarray) -> float:
-    g = 0.0
+def _cell_slopes(v: np.ndarray, h: np.ndarray) -> np.ndarray:
+    """Largest finite-difference slope ``|df| / h`` over the edges of each cell, ``(cells)``."""
+    cells = tuple(n - 1 for n in v.shape)
+    out = np.zeros(cells, dtype=v.dtype)
     for a in range(v.ndim):
         lo = [slice(None)] * v.ndim
         hi = [slice(None)] * v.ndim
         lo[a] = slice(0, -1)
         hi[a] = slice(1, None)
-        both = exact[tuple(lo)] & exact[tuple(hi)]
-        if both.any():
-            d = np.abs(v[tuple(hi)] - v[tuple(lo)])[both]
-            g = max(g, float(d.max()) / h[a])
-    return g
+        e = np.abs(v[tuple(hi)] - v[tuple(lo)]) / h[a]  # edges along a: cells[a] x nodes elsewhere
+        for off in product((0, 1), repeat=v.ndim - 1):
+            sl, j = [], 0
+            for b in range(v.ndim):
+                if b == a:
+                    sl.append(slice(None))
+                else:
+                    sl.append(slice(off[j], off[j] + cells[b]))
+                    j += 1
+            np.maximum(out, e[tuple(sl)], out=out)
+    return out
 
 
 def sample_field(
@@ -205,6 +214,7 @@ def sample_field(
     *,
     adaptive: bool = True,
     safety: float = 2.0,
+    final_safety: float = 1.0,
     min_coarse_cells: int = 8,
     chunk: int = 1 << 16,
     dtype: torch.dtype | None = None,
@@ -217,7 +227,11 @@ def sample_field(
         grid: the node grid.
         z: one latent code ``(k,)`` (or ``(1, k)``), or None.
         adaptive: evaluate exactly only near the zero level set (see the module docstring).
-        safety: factor on the estimated gradient bound of the adaptive refinement.
+        safety: factor on the estimated gradient bound of the adaptive refinement (coarse levels,
+            where a miss would lose a feature larger than the final spacing).
+        final_safety: the factor for the last refinement (cells of twice the final spacing, whose
+            corners are exact, so the local slope is a good bound; a miss there could only lose a
+            feature smaller than about two cells).
         min_coarse_cells: the coarsest adaptive level keeps at least this many cells per axis.
         chunk: points per forward pass.
         dtype, device: of the points fed to the field (default: :func:`field_dtype_device`).
@@ -240,11 +254,12 @@ def sample_field(
         return v.astype(store)
     exact = np.ones(g.shape, dtype=bool)
     parent_active = np.ones(g.cells, dtype=bool)
-    slope = 0.0
     for lev in range(levels, 0, -1):
         h = g.spacing
-        slope = max(slope, _max_slope(v, exact, h))
-        thr = safety * slope * float(np.linalg.norm(h))
+        # local gradient bound: the largest slope over the cell and its neighbours
+        slope = ndimage.maximum_filter(_cell_slopes(v, h), size=3, mode="nearest")
+        fac = final_safety if lev == 1 else safety
+        thr = fac * slope * (0.5 * float(np.linalg.norm(h)))
         absv = np.abs(v)
         cmin = None
         for sl in _corner_slices(g.cells):

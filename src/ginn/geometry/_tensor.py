@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+import numpy as np
 import torch
 from torch import Tensor
 
@@ -14,7 +15,10 @@ def as_f64(v, name: str = "value", shape: tuple[int, ...] | None = None) -> Tens
     Raises:
         ValueError: non-finite entries or a shape mismatch.
     """
-    t = torch.as_tensor(v, dtype=torch.float64).detach().cpu().clone()
+    if isinstance(v, Tensor):
+        t = v.detach().to("cpu", torch.float64).clone()
+    else:
+        t = torch.from_numpy(np.array(v, dtype=np.float64))
     if not torch.isfinite(t).all():
         raise ValueError(f"{name} must be finite")
     if shape is not None and tuple(t.shape) != shape:

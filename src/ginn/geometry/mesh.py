@@ -266,10 +266,16 @@ class _SurfaceDistance:
         q = np.asarray(q, dtype=np.float64)
         if len(q) == 0:
             return np.zeros(0), np.zeros(0, dtype=np.int64)
-        _, j = self.tree.query(q, k=self.k)
-        d, face = self._nearest_among(q, self.sample_face[j.reshape(len(q), self.k)])
-        for _ in range(2):
-            d, face = self._nearest_among(q, self.ring[face])
+        step = max(1, 2_000_000 // max(self.k, self.ring.shape[1]))  # bound the pair arrays
+        d = np.empty(len(q))
+        face = np.empty(len(q), dtype=np.int64)
+        for s in range(0, len(q), step):
+            qs = q[s : s + step]
+            _, j = self.tree.query(qs, k=self.k)
+            ds, fs = self._nearest_among(qs, self.sample_face[j.reshape(len(qs), self.k)])
+            for _ in range(2):
+                ds, fs = self._nearest_among(qs, self.ring[fs])
+            d[s : s + step], face[s : s + step] = ds, fs
         return d, face
 
 

@@ -67,6 +67,8 @@ class GrayScottParams(BaseModel):
     derivatives: Literal["fd", "spectral", "autograd"] = "fd"
     gradient_cap: float = Field(1.0, gt=0, description="the gradient reward saturates at this mean |grad|^2")
     diversity_distance: Literal["rms", "shift"] = "rms"
+    residual_gradient: Literal["full", "flow"] = Field(
+        "full", description="full: gradient of mean(R^2) (the paper); flow: descend along the PDE's own time derivative R")
     u_offset: float = Field(0.0, description="u = u_offset + network output (0: the paper's raw output)")
     v_offset: float = Field(0.0, description="v = v_offset + network output")
     losses: GrayScottLosses = GrayScottLosses()
@@ -241,7 +243,11 @@ class GrayScottTask(Task):
         out: dict[str, Tensor] = {}
         res = (Ru * Ru).mean() + (Rv * Rv).mean()
         if "residual" in active:
-            out["residual"] = res
+            if p.residual_gradient == "full":
+                out["residual"] = res
+            else:  # value mean(R^2), gradient -2 mean(R dW/dtheta): W moves along u_t = R_u, v_t = R_v
+                flow = -2.0 * ((Ru.detach() * u).mean() + (Rv.detach() * v).mean())
+                out["residual"] = res.detach() + flow - flow.detach()
         g2 = (G * G).sum(dim=(1, 2)).mean(dim=(-2, -1))  # (S,)
         if "gradient" in active:
             out["gradient"] = -torch.clamp(g2, max=p.gradient_cap).mean()

@@ -87,7 +87,7 @@ def verify_fields(W: np.ndarray, params: GSParams, th: Thresholds = Thresholds()
         _, vcT = solver.integrate(uc, vc, th.t_final)
         control = float(np.linalg.norm(vcT - vc) / max(np.linalg.norm(vc), 1e-300))
         std_v = float(v.std())
-        nearest = float(np.min(np.where(np.eye(S, dtype=bool), np.inf, D[s]))) if S > 1 else float("nan")
+        nearest = float(np.min(np.where(np.arange(S) == s, np.inf, D[s]))) if S > 1 else float("nan")
         checks = {
             "residual": bool(rr["rel"] <= th.residual_max),
             "stationary": bool(np.isfinite(change) and change <= th.change_max),

@@ -17,6 +17,15 @@ def list_problems() -> list[str]:
     return sorted(p.stem for p in PRESET_DIR.glob("*.yaml"))
 
 
+def problem_summaries() -> list[tuple[str, str, str]]:
+    """``(name, kind, one-line description)`` of every built-in problem (for ``ginn problems``)."""
+    out = []
+    for name in list_problems():
+        spec = load_spec(builtin_path(name))
+        out.append((name, spec.kind, " ".join(spec.description.split())))
+    return out
+
+
 def builtin_path(name: str) -> Path:
     """The YAML file of a built-in problem. Raises SpecError for an unknown name."""
     p = PRESET_DIR / f"{name}.yaml"

@@ -53,11 +53,8 @@ class ShapeTask(Task):
         self.curv_loss = C.MeanCurvatureLoss()
         self.strain_loss = C.StrainLoss(clip=s.strain_clip)
         self.has_normals = any(getattr(i, "has_normals", True) for i in problem.interfaces)
-        corners = [getattr(i, "corners", None) for i in problem.interfaces]
-        corners = [c for c in corners if c is not None and len(c) > 0]
-        self.corners = (
-            torch.cat([torch.as_tensor(c, dtype=dtype) for c in corners]).to(self.device) if corners else None
-        )
+        corners = sampling.interface_corners(problem.interfaces, self.device, dtype) if problem.interfaces else None
+        self.corners = corners if corners is not None and corners.shape[0] > 0 else None
 
     # --- Task API ----------------------------------------------------------------------------
 
@@ -132,7 +129,7 @@ class ShapeTask(Task):
             xi, ni = sampling.sample_interfaces(p.interfaces, S * s.n_interface, gen, **kw)
             out["interface"], out["normals"] = xi.reshape(S, -1, d), ni.reshape(S, -1, d)
         if s.n_band > 0 and p.interfaces and p.interface_band > 0:
-            out["band"] = sampling.sample_band(p.interfaces, S * s.n_band, p.interface_band, gen, **kw).reshape(S, -1, d)
+            out["band"] = sampling.sample_band(p.interfaces, S * s.n_band, p.interface_band, gen, box=p.domain, **kw).reshape(S, -1, d)
         return out
 
     # --- losses ------------------------------------------------------------------------------
