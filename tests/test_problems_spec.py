@@ -271,3 +271,19 @@ def test_docs_embed_the_example_verbatim():
     example = (REPO / "docs" / "examples" / "plate.yaml").read_text()
     body = "".join(line for line in example.splitlines(keepends=True) if not line.startswith("# A user-defined") and not line.startswith("# on a bottom edge"))
     assert body.strip() in doc
+
+
+def test_nested_error_paths():
+    text = """
+    name: g
+    geometry:
+      dim: 3
+      domain: {lo: [-1, -1, -1], hi: [1, 1, 1]}
+      interfaces:
+        - type: group
+          parts:
+            - {type: annulus, center: [0, 0, 0], normal: [0, 0, 1], r_inner: 0.1, r_outer: 0.2}
+            - {type: polyline, points: [[0, 0, 0], [0, 0, 0]]}
+    """
+    _fail(text, "spec field 'geometry.interfaces[0].parts[1]': polyline has a zero-length segment")
+    _fail(text.replace("r_inner: 0.1", "r_inner: 0.3"), "spec field 'geometry.interfaces[0].parts[0]': r_inner = 0.3 must be below r_outer = 0.2")

@@ -463,7 +463,8 @@ class GroupNode(InterfaceNode):
         return v
 
     def _make(self, dim, base_dir, path):
-        return _built(path, lambda: itf.InterfaceUnion([p.make(dim, base_dir) for p in self.parts], merge=True))
+        parts = [p.make(dim, base_dir, f"{path}.parts[{i}]") for i, p in enumerate(self.parts)]
+        return _built(path, lambda: itf.InterfaceUnion(parts, merge=True))
 
 
 InterfaceSpec = Annotated[
