@@ -1,0 +1,143 @@
+"""Constraint losses against analytic fields, the zero-level-set projection, and the diversity loss."""
+
+import math
+
+import pytest
+import torch
+
+from ginn import fields
+from ginn.fields import as_field, evaluate
+from ginn.levelset import project_to_zero
+from ginn.losses import constraints as C
+from ginn.losses.diversity import aggregate_min, aggregate_sum, cross_values, distance_matrix, diversity
+
+D = torch.float64
+
+
+def disk(c, r):
+    c = torch.tensor(c, dtype=D)
+    return as_field(lambda x: (x - c).norm(dim=-1) - r)
+
+
+def test_design_region_zero_for_shape_inside(gen):
+    # E = [-0.9, 0.9] x [-0.4, 0.4]; a disk of radius 0.3 at the origin lies inside E
+    x = torch.rand(20000, 2, dtype=D, generator=gen) * torch.tensor([2.0, 1.0], dtype=D) - torch.tensor([1.0, 0.5], dtype=D)
+    outside = (x[:, 0].abs() > 0.9) | (x[:, 1].abs() > 0.4)
+    f = disk([0.0, 0.0], 0.3)(x[outside])
+    assert C.DesignRegionLoss()(f).item() == 0.0
+
+
+def test_design_region_disk_poking_out_known_value(gen):
+    """Disk of radius r centred on the half-plane boundary y = 0 (E = {y < 0}): the part outside
+    is a half disk, where min(0, f)^2 = (r - rho)^2. Its integral is pi r^4 / 12, so the mean over
+    the sampled outside box [−1,1]x[0,1] (area 2) is pi r^4 / 24."""
+    r = 0.5
+    n = 400000
+    x = torch.rand(n, 2, dtype=D, generator=gen) * torch.tensor([2.0, 1.0], dtype=D) - torch.tensor([1.0, 0.0], dtype=D)
+    val = C.DesignRegionLoss()(disk([0.0, 0.0], r)(x)).item()
+    exact = math.pi * r**4 / 24
+    assert val == pytest.approx(exact, rel=0.02)
+
+
+def test_eikonal_zero_for_exact_sdf(gen):
+    x = torch.randn(500, 3, dtype=D, generator=gen) + 2.0
+    v = evaluate(disk([0.0, 0.0, 0.0], 1.0), x, create_graph=False)
+    assert C.EikonalLoss()(v.grad).item() < 1e-20
+    v2 = evaluate(as_field(lambda p: 2 * p.norm(dim=-1)), x, create_graph=False)
+    assert C.EikonalLoss()(v2.grad).item() == pytest.approx(1.0, abs=1e-12)
+
+
+def test_interface_and_normal_losses(gen):
+    # the circle of radius 0.5 passes through interface samples on it; normals outward
+    t = torch.rand(300, dtype=D, generator=gen) * 2 * math.pi
+    xi = 0.5 * torch.stack([t.cos(), t.sin()], -1)
+    n_out = xi / 0.5
+    v = evaluate(disk([0.0, 0.0], 0.5), xi, create_graph=False)
+    assert C.InterfaceLoss()(v.f).item() < 1e-28
+    assert C.NormalLoss()(v.grad, n_out).item() == pytest.approx(0.0, abs=1e-24)
+    assert C.NormalLoss()(v.grad, -n_out).item() == pytest.approx(4.0, abs=1e-12)
+    # a circle of radius 0.6: interface loss is 0.1^2
+    v6 = evaluate(disk([0.0, 0.0], 0.6), xi, create_graph=False)
+    assert C.InterfaceLoss()(v6.f).item() == pytest.approx(0.01, rel=1e-9)
+    # per-sample weights: a weighted mean
+    w = torch.ones(300, dtype=D)
+    w[:10] = 5
+    assert C.InterfaceLoss()(v6.f, w).item() == pytest.approx(0.01, rel=1e-9)
+
+
+def test_curvature_and_strain_losses_on_sphere(gen):
+    r = 0.8
+    p = torch.randn(200, 3, dtype=D, generator=gen)
+    p = r * p / p.norm(dim=-1, keepdim=True)
+    v = evaluate(disk([0.0, 0.0, 0.0], r), p, grad=False, hessian_at=True, create_graph=False)
+    assert C.MeanCurvatureLoss()(v.hessian_grad, v.hessian).item() == pytest.approx((2 / r) ** 2, rel=1e-9)
+    assert C.StrainLoss()(v.hessian_grad, v.hessian).item() == pytest.approx(2 / r**2, rel=1e-9)
+    assert C.StrainLoss(clip=1.0)(v.hessian_grad, v.hessian).item() == pytest.approx(1.0)
+
+
+def test_projection_lands_on_circle(gen):
+    r = 0.37
+    fld = as_field(lambda x: x.norm(dim=-1) ** 2 - r**2)  # not an SDF: Newton still converges
+    x0 = torch.rand(1000, 2, dtype=D, generator=gen) * 2 - 1
+    proj = project_to_zero(fld, x0, steps=12, tol=1e-9)
+    assert proj.n_converged == 1000
+    assert (proj.x.norm(dim=-1) - r).abs().max() < 1e-5
+
+
+def test_projection_reports_failures(gen):
+    fld = as_field(lambda x: x.norm(dim=-1) - 0.5)
+    x0 = torch.rand(100, 2, dtype=D, generator=gen) * 2 - 1
+    lo, hi = torch.tensor([-0.1, -1.0], dtype=D), torch.tensor([1.0, 1.0], dtype=D)
+    proj = project_to_zero(fld, x0, steps=5, tol=1e-8, bounds=(lo, hi))
+    assert 0 < proj.n_converged < 100
+    assert torch.all(proj.x[proj.converged][:, 0] >= -0.1)
+
+
+# --- diversity (Appendix E) -------------------------------------------------------------------
+
+
+def _circle_points(r, m, c=(0.0, 0.0)):
+    t = torch.arange(m, dtype=D) * 2 * math.pi / m
+    return torch.stack([c[0] + r * t.cos(), c[1] + r * t.sin()], -1)
+
+
+def latent_circles(x, z):
+    """f(x; z) = |x| - z: concentric circles of radius z (exact SDFs)."""
+    return x.norm(dim=-1) - z[:, 0]
+
+
+def test_distance_of_field_to_itself_is_zero():
+    Z = torch.tensor([[0.3], [0.3]], dtype=D)
+    xb = torch.stack([_circle_points(0.3, 64), _circle_points(0.3, 64)])
+    Dm = distance_matrix(cross_values(latent_circles, xb, Z))
+    assert Dm[0, 1].item() <= 1e-6  # the floor sqrt(1e-12) that keeps the gradient finite
+
+
+def test_distance_between_concentric_circles_closed_form():
+    r1, r2 = 0.3, 0.5
+    Z = torch.tensor([[r1], [r2]], dtype=D)
+    xb = torch.stack([_circle_points(r1, 128), _circle_points(r2, 128)])
+    Dm = distance_matrix(cross_values(latent_circles, xb, Z))
+    # mean over each circle of the other's SDF squared is (r1 - r2)^2: d = sqrt(2) |r1 - r2|
+    assert Dm[0, 1].item() == pytest.approx(math.sqrt(2) * abs(r1 - r2), rel=1e-12)
+    assert torch.allclose(Dm, Dm.T)
+
+
+def test_aggregations_on_hand_made_matrices():
+    Dm = torch.tensor([[0.0, 1.0, 4.0], [1.0, 0.0, 9.0], [4.0, 9.0, 0.0]], dtype=D)
+    # nearest: 1, 1, 4 -> (1 + 1 + 2)^2 = 16
+    assert aggregate_min(Dm, 0.5).item() == pytest.approx(16.0)
+    assert aggregate_min(Dm, 1.0).item() == pytest.approx(6.0)
+    # totals: 5, 10, 13
+    assert aggregate_sum(Dm, 1.0).item() == pytest.approx(28.0)
+    assert aggregate_sum(Dm, 2.0).item() == pytest.approx(math.sqrt(25 + 100 + 169))
+    assert aggregate_min(torch.zeros(1, 1, dtype=D)).item() == 0.0
+
+
+def test_diversity_gradient_pushes_circles_apart():
+    z = torch.tensor([[0.30], [0.32], [0.60]], dtype=D, requires_grad=True)
+    xb = torch.stack([_circle_points(float(r), 64) for r in z.detach()[:, 0]])
+    delta = diversity(latent_circles, xb, z)
+    (-delta).backward()
+    # gradient descent on -delta separates the two close circles
+    assert z.grad[0, 0] > 0 and z.grad[1, 0] < 0
