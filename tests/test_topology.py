@@ -422,6 +422,7 @@ def _fitted_two_disk_siren(steps=600):
     return model, interface
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ["surface-network", "persistent-homology"])
 def test_training_connects_two_disks(method):
     """A SIREN fitted to two disks (b0 = 2); interface loss on their outer halves plus the
