@@ -1,0 +1,113 @@
+"""Derivative engine vs. a torch.func baseline at equal work.
+
+Work per step (SIREN 3 -> 4x256 -> 1, float32): value and gradient at N points, the Hessian at M
+of them, a loss of all three (eikonal + value^2 + squared divergence of the normal), backward to
+the weights, one Adam step.
+
+* engine: ginn.fields.evaluate (eager autograd; Hessian by a separate pass on the M points).
+* baseline: torch.func as the authors' code does: vmap(jacrev(f)) for gradients at N points and
+  vmap(jacrev(jacrev(f))) for Hessians at M points (values from a plain forward pass).
+
+The last line prints the speed ratio and the engine's achieved GFLOP/s (matmul FLOPs counted by
+the torch profiler) as a share of this machine's measured float32 matmul peak.
+
+Usage: python benchmarks/derivatives.py [--points 20000] [--hessian-points 2000] [--repeats 5]
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+
+import torch
+from torch.func import functional_call, jacrev, vmap
+from torch.profiler import ProfilerActivity, profile
+
+from ginn import fields
+from ginn.models import Siren
+
+
+def matmul_peak(n: int = 2048, repeats: int = 5) -> float:
+    a, b = torch.randn(n, n), torch.randn(n, n)
+    a @ b
+    best = float("inf")
+    for _ in range(repeats):
+        t = time.perf_counter()
+        a @ b
+        best = min(best, time.perf_counter() - t)
+    return 2 * n**3 / best / 1e9
+
+
+def engine_loss(model, x, hidx):
+    v = fields.evaluate(model, x, None, grad=True, hessian_at=hidx, create_graph=True)
+    div = fields.divergence_of_normal(v.hessian_grad, v.hessian)
+    return (v.grad.norm(dim=-1) - 1).pow(2).mean() + v.f.pow(2).mean() + div.pow(2).mean()
+
+
+def baseline_loss(model, x, hidx):
+    params = dict(model.named_parameters())
+
+    def f_single(p):
+        return functional_call(model, params, (p[None, :],))[0]
+
+    f = model(x)
+    g = vmap(jacrev(f_single))(x)
+    xh = x[hidx]
+    H = vmap(jacrev(jacrev(f_single)))(xh)
+    gh = vmap(jacrev(f_single))(xh)
+    div = fields.divergence_of_normal(gh, H)
+    return (g.norm(dim=-1) - 1).pow(2).mean() + f.pow(2).mean() + div.pow(2).mean()
+
+
+def time_steps(loss_fn, model, x, hidx, repeats):
+    opt = torch.optim.Adam(model.parameters(), lr=1e-4)
+    times = []
+    for i in range(repeats + 1):
+        t = time.perf_counter()
+        opt.zero_grad()
+        loss = loss_fn(model, x, hidx)
+        loss.backward()
+        opt.step()
+        if i > 0:  # first step warms up
+            times.append(time.perf_counter() - t)
+    return statistics.median(times), float(loss.detach())
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--points", type=int, default=20000)
+    ap.add_argument("--hessian-points", type=int, default=2000)
+    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--threads", type=int, default=0)
+    a = ap.parse_args()
+    if a.threads:
+        torch.set_num_threads(a.threads)
+    torch.manual_seed(0)
+    model = Siren(3, [256] * 4, w0_first=8.0)
+    x = torch.rand(a.points, 3) * 2 - 1
+    hidx = torch.randperm(a.points)[: a.hessian_points]
+
+    # same numbers from both (sanity)
+    le = engine_loss(model, x[:500], torch.arange(100))
+    lb = baseline_loss(model, x[:500], torch.arange(100))
+    assert torch.allclose(le, lb, rtol=1e-4), (float(le), float(lb))
+
+    peak = matmul_peak()
+    with profile(activities=[ProfilerActivity.CPU], with_flops=True) as prof:
+        loss = engine_loss(model, x, hidx)
+        loss.backward()
+    flops = sum(e.flops for e in prof.key_averages() if e.flops)
+    model.zero_grad()
+
+    t_engine, _ = time_steps(engine_loss, model, x, hidx, a.repeats)
+    t_base, _ = time_steps(baseline_loss, model, x, hidx, a.repeats)
+    gflops = flops / t_engine / 1e9
+    print(f"threads: {torch.get_num_threads()}  matmul peak: {peak:.1f} GFLOP/s")
+    print(f"engine   : {t_engine:.3f} s/step  ({flops / 1e9:.1f} GFLOP counted, {gflops:.1f} GFLOP/s)")
+    print(f"torch.func baseline: {t_base:.3f} s/step")
+    print(f"speedup engine vs torch.func: {t_base / t_engine:.2f}x; engine at {gflops:.1f} GFLOP/s = {100 * gflops / peak:.0f}% of measured matmul peak")
+
+
+if __name__ == "__main__":
+    main()
