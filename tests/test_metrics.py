@@ -89,6 +89,18 @@ def test_boundary_overlap_strip_crossing_a_rectangle_design_region():
     assert s["volume_outside"] == pytest.approx(0.04 / 0.56, abs=2 * 0.6 * (h / 2) / 0.56)
 
 
+def test_boundary_overlap_counts_a_shape_boundary_coinciding_with_dE():
+    # Omega = [-0.9, 0.9] x [-0.1, 0.1] ends exactly on the sides x = +-0.9 of E (perimeter 5.2).
+    P = Problem("t", Box((-1.0, -0.5), (1.0, 0.5)), design_region=Rect((-0.9, -0.4), (0.9, 0.4)))
+    bar = as_field(Rect((-0.9, -0.1), (0.9, 0.1)).sdf)
+    res = 256
+    h = 2 / res
+    s = evaluate_shapes(bar, None, P, res)["shapes"][0]
+    # the tolerance of one spacing can add h at each of the 4 ends of the two covered pieces
+    assert 0.4 / 5.2 - 0.003 <= s["boundary_overlap"] <= (0.4 + 4 * h) / 5.2 + 0.003
+    assert s["volume_outside"] == 0.0
+
+
 def test_connected_interfaces_share():
     itf = VerticalSegments([-0.5, 0.5], 0.2)
     P = problem(interfaces=(itf,))

@@ -8,7 +8,9 @@ Names (the keys of ``metrics.json``) and estimators:
   (nearly) uniformly by projecting the nodes of a band ``|sdf_E| < h`` (on the grid extended four
   nodes beyond X, so the part of dE on the domain faces is sampled like the rest) onto ``sdf_E = 0``
   with two Newton steps (finite-difference gradients); the metric is the fraction of these samples
-  with ``f <= 0`` (multilinear interpolation of the grid values, exact near the shape's boundary).
+  in the shape or within one grid spacing of it (``f / |grad f| <= h``, multilinear interpolation
+  of the grid values, exact near the shape's boundary): a shape boundary that coincides with dE
+  counts, as it must for shapes that fill E up to its boundary.
   A band of constant width holds a number of nodes proportional to the area it surrounds, so the
   samples are uniform by area up to O(h * curvature).
 * ``interface_cd1`` = CD1(dOmega, I) (equation 4): root mean square of the distances from interface
@@ -253,11 +255,28 @@ def volume_outside(inside: np.ndarray, in_design: np.ndarray, weights: np.ndarra
     return float(weights[inside & ~in_design].sum(dtype=np.float64)) / vol_outside_design
 
 
-def boundary_overlap(values: np.ndarray, grid: Grid, design_boundary_points: np.ndarray) -> float | None:
-    """Fraction of the dE samples inside the shape (``f <= 0``, grid interpolation)."""
-    if design_boundary_points.shape[0] == 0:
+def boundary_overlap(values: np.ndarray, grid: Grid, design_boundary_points: np.ndarray, tol: float | None = None) -> float | None:
+    """Fraction of the dE samples lying in the shape, up to ``tol`` (default: one grid spacing).
+
+    A sample ``x`` counts when ``f(x) / |grad f(x)| <= tol`` (grid interpolation, central
+    differences of half a spacing), i.e. when it is inside or within about ``tol`` of the shape, so
+    that a shape boundary coinciding with dE (a shape filling the design region up to its boundary,
+    as at interfaces lying on dE) counts, robustly against rounding.
+    """
+    x = design_boundary_points
+    if x.shape[0] == 0:
         return None
-    return float(np.mean(interpolate(values, grid, design_boundary_points) <= 0))
+    h = grid.spacing
+    tol = float(h.min()) if tol is None else float(tol)
+    f = interpolate(values, grid, x)
+    g2 = np.zeros_like(f)
+    for a in range(grid.dim):
+        e = np.zeros(grid.dim)
+        e[a] = 0.5 * h[a]
+        da = (interpolate(values, grid, x + e) - interpolate(values, grid, x - e)) / h[a]
+        g2 += da * da
+    inside = (f <= 0) | (f <= tol * np.sqrt(g2))
+    return float(np.mean(inside))
 
 
 def interface_cd1(boundary: Boundary, interface_points: np.ndarray) -> float | None:

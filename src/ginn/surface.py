@@ -292,10 +292,12 @@ def interpolate(values: np.ndarray, grid: Grid, x: np.ndarray) -> np.ndarray:
 
 
 def label_components(mask: np.ndarray) -> tuple[np.ndarray, int]:
-    """Face-connected components of a boolean node mask: ``(labels (int32, 0 = background), count)``."""
-    structure = ndimage.generate_binary_structure(mask.ndim, 1)
-    labels, n = ndimage.label(mask, structure=structure, output=np.int32)
-    return labels, int(n)
+    """Face-connected components of a boolean node mask: ``(labels (0 = background), count)``.
+
+    The labelling of :mod:`ginn.topology.components` (face connectivity, as its cubical PH)."""
+    from .topology.components import label_components as _label
+
+    return _label(mask, connectivity=1)
 
 
 # --- boundaries: closed polylines (2D) and meshes (3D) ---------------------------------------------
