@@ -260,8 +260,8 @@ class _SurfaceDistance:
     def query(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(distance (n,), nearest face index (n,))``.
 
-        Candidates: the faces of the ``k`` nearest sites, then twice the vertex one-ring of the
-        best face so far (a local descent over the mesh).
+        Candidates: the faces of the ``k`` nearest sites, then the vertex one-ring of the best face
+        so far, repeated (up to 3 times) while the best face changes (a local descent over the mesh).
         """
         q = np.asarray(q, dtype=np.float64)
         if len(q) == 0:
@@ -273,8 +273,14 @@ class _SurfaceDistance:
             qs = q[s : s + step]
             _, j = self.tree.query(qs, k=self.k)
             ds, fs = self._nearest_among(qs, self.sample_face[j.reshape(len(qs), self.k)])
-            for _ in range(2):
-                ds, fs = self._nearest_among(qs, self.ring[fs])
+            todo = np.arange(len(qs))
+            for _ in range(3):  # descend over neighbouring triangles while the best face changes
+                d2, f2 = self._nearest_among(qs[todo], self.ring[fs[todo]])
+                moved = f2 != fs[todo]
+                ds[todo], fs[todo] = d2, f2
+                todo = todo[moved]
+                if len(todo) == 0:
+                    break
             d[s : s + step], face[s : s + step] = ds, fs
         return d, face
 
