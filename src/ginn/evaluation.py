@@ -27,6 +27,7 @@ from .metrics import (
     shape_metrics,
 )
 from .problems.problem import Problem
+from .surface import Boundary
 
 __all__ = ["evaluate_shapes", "default_resolution", "format_table", "format_comparison_table", "METRIC_LABELS"]
 
@@ -103,8 +104,11 @@ def evaluate_shapes(
             tm["extract"] = tm.get("extract", 0.0) + time.perf_counter() - t
             shapes.append(shape_metrics(sh, ctx, field, z, n_strain_samples=n_strain_samples, seed=seed + i, timings=tm))
             if len(codes) > 1:
-                boundaries.append(sh.boundary)
-                samples.append(sh.boundary.sample(n_diversity_samples, np.random.default_rng(seed + i)))
+                # keep a compact copy (float32 / int32, no KD-tree) for the diversity
+                b = sh.boundary
+                b = Boundary(b.vertices.astype(np.float32), b.elements.astype(np.int32), b.on_level_set)
+                boundaries.append(b)
+                samples.append(b.sample(n_diversity_samples, np.random.default_rng(seed + i)))
             del sh
     finally:
         if was_training:

@@ -426,6 +426,7 @@ def chamfer_matrix(boundaries: list[Boundary], samples: list[np.ndarray]) -> np.
                 continue
             d = boundaries[i].distance(samples[j])
             A[i, j] = float(np.mean(d * d))
+        boundaries[i]._tree = None  # free the KD-tree of row i
     return np.sqrt(A + A.T)
 
 

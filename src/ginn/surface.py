@@ -497,7 +497,7 @@ class Boundary:
             return np.full(x.shape[0], np.inf)
         k = min(k, self.n_elements)
         tree = self.centroid_tree()
-        V, E = self.vertices, self.elements
+        V, E = self.vertices.astype(np.float64, copy=False), self.elements
         out = np.empty(x.shape[0])
         for s in range(0, x.shape[0], chunk):
             p = x[s : s + chunk]
