@@ -148,3 +148,38 @@ def test_verify_fields_flags_uniform_and_noise():
     assert b["checks"]["nontrivial"] and not b["checks"]["residual"] and not b["checks"]["stationary"]
     assert out["latents_passing"] == 0
     assert out["distance_matrix"][0][1] > 0.05
+
+
+def test_finalize_and_verify_run_write_files(tmp_path):
+    torch.manual_seed(0)
+    task = GrayScottTask(_cfg(resolution=16, n_interpolation=3), torch.device("cpu"), torch.float32)
+    model = task.build_model()
+    files = task.finalize(model, tmp_path)
+    names = {f.name for f in files}
+    assert {"u_00.npy", "v_02.npy", "v_01.png", "patterns_v.png", "interpolation_v.png"} <= names
+    v0 = np.load(tmp_path / "patterns" / "v_00.npy")
+    assert v0.shape == (16, 16)
+    from ginn.pinn.verify import Thresholds, verify_run
+
+    out = verify_run(model, task.latents(), task.cfg.params, resolution=16, run_dir=tmp_path,
+                     thresholds=Thresholds(t_final=10.0))
+    assert out["n_latents"] == 3 and 0 <= out["latents_passing"] <= 3
+    assert np.load(tmp_path / "verify_u_02.npy").shape == (16, 16)
+    # the sampled grid is the same one finalize used (x = (i, j) / n)
+    assert np.allclose(np.load(tmp_path / "verify_v_00.npy"), v0, atol=1e-6)
+
+
+@pytest.mark.slow
+def test_quick_preset_acceptance(tmp_path):
+    """The issue's acceptance: the quick preset gives >= 8 latents passing all four checks."""
+    from ginn.pinn.verify import verify_run
+    from ginn.problems.loader import get_spec
+    from ginn.train.registry import make_task, resolve_config
+    from ginn.train.trainer import Trainer
+
+    spec = get_spec("gray-scott")
+    cfg = resolve_config(spec, "quick")
+    task = make_task(spec, cfg)
+    result = Trainer(task, cfg, tmp_path, progress=False).train()
+    out = verify_run(result.model, task.latents(), cfg.params, resolution=256, run_dir=tmp_path)
+    assert out["latents_passing"] >= 8, out["latents_passing"]

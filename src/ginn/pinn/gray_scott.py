@@ -71,6 +71,7 @@ class GrayScottParams(BaseModel):
         "full", description="full: gradient of mean(R^2) (the paper); flow: descend along the PDE's own time derivative R")
     u_offset: float = Field(0.0, description="u = u_offset + network output (0: the paper's raw output)")
     v_offset: float = Field(0.0, description="v = v_offset + network output")
+    output_scale: float = Field(1.0, gt=0, description="u = u_offset + output_scale * network output (same for v)")
     losses: GrayScottLosses = GrayScottLosses()
     resolution: int = Field(256, ge=8, description="resolution of the written fields and pictures")
     n_interpolation: int = Field(8, ge=2, description="patterns in the latent interpolation strip")
@@ -95,19 +96,20 @@ def parse_params(params: dict) -> GrayScottParams:
 class GrayScottField(nn.Module):
     """``(u, v)`` of every latent: two networks ``model.u``, ``model.v``, each ``(x, z) -> (n,)``.
 
-    ``forward(x (n, 2), z (n, k)) -> (n, 2)`` with columns ``u, v`` (offsets added).
+    ``forward(x (n, 2), z (n, k)) -> (n, 2)`` with columns ``u = u_offset + scale * model.u(x, z)``
+    and ``v = v_offset + scale * model.v(x, z)`` (defaults: the raw outputs).
     """
 
-    def __init__(self, u: nn.Module, v: nn.Module, u_offset: float = 0.0, v_offset: float = 0.0):
+    def __init__(self, u: nn.Module, v: nn.Module, u_offset: float = 0.0, v_offset: float = 0.0, scale: float = 1.0):
         super().__init__()
         self.u, self.v = u, v
-        self.u_offset, self.v_offset = float(u_offset), float(v_offset)
+        self.u_offset, self.v_offset, self.scale = float(u_offset), float(v_offset), float(scale)
 
     def field_u(self, x: Tensor, z: Tensor | None) -> Tensor:
-        return self.u(x, z) + self.u_offset
+        return self.scale * self.u(x, z) + self.u_offset
 
     def field_v(self, x: Tensor, z: Tensor | None) -> Tensor:
-        return self.v(x, z) + self.v_offset
+        return self.scale * self.v(x, z) + self.v_offset
 
     def forward(self, x: Tensor, z: Tensor | None = None) -> Tensor:
         return torch.stack([self.field_u(x, z), self.field_v(x, z)], dim=-1)
@@ -127,7 +129,7 @@ def build_field(cfg: RunConfig, params: GrayScottParams) -> GrayScottField:
                               activation=m.activation, beta=m.beta, pre_encoding=PeriodicEncoding())
         raise ConfigError(f"config field 'model.kind': {m.kind!r} is not supported by gray-scott (siren, fourier)")
 
-    return GrayScottField(one(), one(), params.u_offset, params.v_offset)
+    return GrayScottField(one(), one(), params.u_offset, params.v_offset, params.output_scale)
 
 
 def fixed_latents(n: int, dim: int, low: float, high: float, seed: int) -> Tensor:
