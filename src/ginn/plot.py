@@ -217,11 +217,25 @@ def plot_views(
 # --- sets of shapes -----------------------------------------------------------------------------------
 
 
-def _boundaries(field: Field, latents: list[Tensor | None], domain: Box, resolution: int) -> list[Boundary]:
+def _boundaries(
+    field: Field, latents: list[Tensor | None], domain: Box, resolution: int, cache: dict | None = None
+) -> list[Boundary]:
+    """Extracted boundaries of the shapes of ``latents``; ``cache`` (keyed by latent values and
+    resolution) lets the figures of one run share their extractions."""
     g = make_grid(domain, resolution)
     if isinstance(field, torch.nn.Module):
         field.eval()
-    return [extract_boundary(sample_field(field, g, z), g) for z in latents]
+    out = []
+    for z in latents:
+        key = (None if z is None else tuple(z.reshape(-1).tolist()), resolution)
+        if cache is not None and key in cache:
+            out.append(cache[key])
+            continue
+        b = extract_boundary(sample_field(field, g, z), g)
+        if cache is not None:
+            cache[key] = b
+        out.append(b)
+    return out
 
 
 def _codes(Z: Tensor | None) -> list[Tensor | None]:
@@ -257,11 +271,13 @@ def _panel_size(problem: Problem) -> tuple[float, float]:
     return (3.0, 3.0 * ext[1] / ext[0] + 0.3) if problem.dim == 2 else (3.0, 3.0)
 
 
-def plot_superposition(field: Field, Z: Tensor | None, problem: Problem, path: str | Path, resolution: int | None = None) -> Path:
+def plot_superposition(
+    field: Field, Z: Tensor | None, problem: Problem, path: str | Path, resolution: int | None = None, *, cache: dict | None = None
+) -> Path:
     """Figure 4 style: every shape filled with transparency, overlaid on the problem (2D). In 3D,
     all shapes in one rendered view, each with its own colour."""
     res = resolution or _default_resolution(problem.dim)
-    bs = _boundaries(field, _codes(Z), problem.domain, res)
+    bs = _boundaries(field, _codes(Z), problem.domain, res, cache)
     w, h = _panel_size(problem)
     fig = new_figure(2 * w, 2 * h)
     if problem.dim == 2:
@@ -283,12 +299,19 @@ def plot_superposition(field: Field, Z: Tensor | None, problem: Problem, path: s
 
 
 def plot_shapes(
-    field: Field, Z: Tensor | None, problem: Problem, path: str | Path, resolution: int | None = None, ncols: int | None = None
+    field: Field,
+    Z: Tensor | None,
+    problem: Problem,
+    path: str | Path,
+    resolution: int | None = None,
+    ncols: int | None = None,
+    *,
+    cache: dict | None = None,
 ) -> Path:
     """One panel per shape (2D: on the problem; 3D: one rendered view)."""
     res = resolution or _default_resolution(problem.dim)
     codes = _codes(Z)
-    bs = _boundaries(field, codes, problem.domain, res)
+    bs = _boundaries(field, codes, problem.domain, res, cache)
     rows, cols = _panel_grid(len(bs), ncols)
     w, h = _panel_size(problem)
     fig = new_figure(w * cols, h * rows)
@@ -322,7 +345,14 @@ def interpolation_latents(Z: Tensor) -> tuple[Tensor, list[bool]]:
 
 
 def plot_interpolation(
-    field: Field, Z: Tensor, problem: Problem, path: str | Path, resolution: int | None = None, ncols: int | None = None
+    field: Field,
+    Z: Tensor,
+    problem: Problem,
+    path: str | Path,
+    resolution: int | None = None,
+    ncols: int | None = None,
+    *,
+    cache: dict | None = None,
 ) -> Path:
     """Figure 6 style: trained shapes in colour, the shapes at the latent mid-points of neighbouring
     trained latents in grey, in sequence (trained, mid-point, trained, ...)."""
@@ -330,7 +360,7 @@ def plot_interpolation(
 
     res = resolution or _default_resolution(problem.dim)
     lat, trained = interpolation_latents(Z)
-    bs = _boundaries(field, _codes(lat), problem.domain, res)
+    bs = _boundaries(field, _codes(lat), problem.domain, res, cache)
     n = len(bs)
     cols = ncols or min(n, 5 if problem.dim == 2 else 5)
     rows = int(math.ceil(n / cols))
@@ -411,20 +441,28 @@ def plot_run(
     resolution: int | None = None,
     views: Sequence[tuple[float, float]] = DEFAULT_VIEWS,
     max_view_shapes: int = 16,
+    max_render_resolution: int = 96,
 ) -> list[Path]:
-    """All figures of a run into ``out_dir`` (see the module docstring); returns the paths."""
+    """All figures of a run into ``out_dir`` (see the module docstring); returns the paths.
+
+    Every shape is extracted once (shared by the figures). In 3D the meshes drawn by matplotlib are
+    extracted at ``min(resolution, max_render_resolution)`` (rendering cost grows with triangles).
+    """
     out_dir = Path(out_dir)
+    res = resolution or _default_resolution(problem.dim)
+    if problem.dim == 3:
+        res = min(res, max_render_resolution)
+    cache: dict = {}
     paths = []
     if problem.dim == 2:
-        paths.append(plot_superposition(field, Z, problem, out_dir / "superposition.png", resolution))
-    paths.append(plot_shapes(field, Z, problem, out_dir / "shapes.png", resolution))
+        paths.append(plot_superposition(field, Z, problem, out_dir / "superposition.png", res, cache=cache))
+    paths.append(plot_shapes(field, Z, problem, out_dir / "shapes.png", res, cache=cache))
     if Z is not None and Z.shape[0] > 1:
-        paths.append(plot_interpolation(field, Z, problem, out_dir / "interpolation.png", resolution))
+        paths.append(plot_interpolation(field, Z, problem, out_dir / "interpolation.png", res, cache=cache))
     if metrics_jsonl is not None and Path(metrics_jsonl).exists():
         paths.append(plot_loss_curves(metrics_jsonl, out_dir / "loss_curves.png"))
     if problem.dim == 3:
-        res = resolution or _default_resolution(3)
         codes = _codes(Z)[:max_view_shapes]
-        for i, b in enumerate(_boundaries(field, codes, problem.domain, res)):
+        for i, b in enumerate(_boundaries(field, codes, problem.domain, res, cache)):
             paths.append(plot_views(b, problem, out_dir / f"shape_{i:03d}_views.png", views))
     return paths
