@@ -182,3 +182,16 @@ def test_tables():
     assert len(c.splitlines()) == 3 + len(METRIC_NAMES) + 1
     with pytest.raises(ValueError):
         format_comparison_table([r], ["a", "b"])
+
+
+def test_empty_shape_gives_strict_json():
+    import json
+
+    f = lambda x, z: x.norm(dim=-1) - z[:, 0]  # radius z; z = -1: empty
+    Z = torch.tensor([[-1.0], [0.3], [0.5]], dtype=torch.float64)
+    r = evaluate_shapes(f, Z, problem(interfaces=(Circle(0.3),)), 64)
+    s0 = r["shapes"][0]
+    assert s0["b0"] == 0 and s0["interface_cd1"] is None and s0["surface_strain"] is None
+    json.dumps(r, allow_nan=False)
+    assert r["mean"]["b0"] == pytest.approx(2 / 3)
+    assert r["diversity_mean"] == pytest.approx(np.sqrt(2) * 0.2, abs=2e-3)  # over the two disks

@@ -51,6 +51,13 @@ def default_resolution(dim: int) -> int:
     return 512 if dim == 2 else 128
 
 
+def _finite_or_none(v):
+    """JSON has no infinity: undefined values (e.g. the CD1 of an empty shape) become None."""
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    return v
+
+
 def _mean(values: list) -> float | None:
     v = [float(x) for x in values if x is not None and math.isfinite(float(x))]
     return float(np.mean(v)) if v else None
@@ -83,8 +90,9 @@ def evaluate_shapes(
 
     Returns:
         ``{"problem": name, "n_shapes": S, "shapes": [{metric: value}], "mean": {metric: value},
-        "diversity_mean": value or None}`` (JSON-serialisable; ``None`` where a metric does not
-        apply; means skip ``None`` and non-finite values).
+        "diversity_mean": value or None}`` (strict JSON; ``None`` where a metric does not apply or
+        is undefined, e.g. the CD1 of an empty shape; means skip ``None``; the diversity is taken
+        over the non-empty shapes).
     """
     resolution = int(resolution or default_resolution(problem.dim))
     tm = timings if timings is not None else {}
@@ -114,10 +122,12 @@ def evaluate_shapes(
         if was_training:
             field.train()
     div = None
-    if len(boundaries) > 1:
+    keep = [i for i, b in enumerate(boundaries) if b.n_elements > 0]  # empty shapes have no boundary
+    if len(keep) > 1:
         t = time.perf_counter()
-        div = diversity_from_matrix(chamfer_matrix(boundaries, samples))
+        div = diversity_from_matrix(chamfer_matrix([boundaries[i] for i in keep], [samples[i] for i in keep]))
         tm["diversity_mean"] = tm.get("diversity_mean", 0.0) + time.perf_counter() - t
+    shapes = [{k: _finite_or_none(v) for k, v in s.items()} for s in shapes]
     mean = {k: _mean([s[k] for s in shapes]) for k in METRIC_NAMES}
     return {
         "problem": problem.name,
