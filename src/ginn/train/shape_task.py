@@ -15,11 +15,12 @@ import torch
 from torch import Tensor, nn
 
 from .. import fields
+from ..errors import ConfigError
 from ..geometry import sampling
 from ..latents import fixed_latents, latent_dim, random_latents
 from ..levelset import project_to_zero
 from ..losses import constraints as C
-from ..losses.diversity import diversity
+from ..losses.diversity import aggregate, distance_matrix, diversity
 from ..models.factory import build_model
 from ..problems.problem import Problem
 from .config import LossTerm, RunConfig
@@ -55,6 +56,8 @@ class ShapeTask(Task):
         self.has_normals = any(getattr(i, "has_normals", True) for i in problem.interfaces)
         corners = sampling.interface_corners(problem.interfaces, self.device, dtype) if problem.interfaces else None
         self.corners = corners if corners is not None and corners.shape[0] > 0 else None
+        self.dist = None  # DistContext when trained data-parallel (see distribute)
+        self.shard: tuple[int, int] | None = None
 
     # --- Task API ----------------------------------------------------------------------------
 
@@ -92,9 +95,15 @@ class ShapeTask(Task):
         if "connectedness" in state and state["connectedness"]:
             self.connectedness_loss().load_state_dict(state["connectedness"])
 
+    def distribute(self, ctx) -> None:
+        """Train only this rank's slice of the shapes (``ginn.train.distributed``)."""
+        if self.cfg.latents.n_shapes == 1:
+            raise ConfigError("distributed training shards the shapes of a generative model: set latents.n_shapes > 1")
+        self.dist, self.shard = ctx, ctx.shard(self.cfg.latents.n_shapes)
+
     def connectedness_loss(self):
         if self._conn is None:
-            from ..topology.connectedness import make_connectedness_loss
+            from ..topology import make_connectedness_loss
 
             self._conn = make_connectedness_loss(
                 self.problem.domain,
@@ -138,6 +147,9 @@ class ShapeTask(Task):
         Z = self._step_latents(gen)
         S = 1 if Z is None else Z.shape[0]
         pts = self.sample(S, active, gen)
+        if self.shard is not None:  # distributed: every rank samples all shapes, keeps its slice
+            lo, hi = self.shard
+            Z, pts, S = Z[lo:hi], {k: v[lo:hi] for k, v in pts.items()}, hi - lo
         names = [k for k in ("domain", "band", "interface", "outside", "obstacle") if k in pts]
         sizes = [pts[k].shape[1] for k in names]
         X = torch.cat([pts[k] for k in names], dim=1)  # (S, N, d)
@@ -225,7 +237,13 @@ class ShapeTask(Task):
                 out["strain"] = self.strain_loss(gh[keep], hh[keep])
         if "diversity" in active and Z is not None:
             dv = self.cfg.diversity
-            out["diversity"] = -diversity(model, xb, Z, mask, kind=dv.aggregation, p=dv.p)
+            if self.dist is not None:  # all shapes' cross values, exact gradients
+                from .distributed import cross_values_sharded
+
+                V, M = cross_values_sharded(model, xb, Z, mask, self.dist)
+                out["diversity"] = -aggregate(distance_matrix(V, M), dv.aggregation, dv.p)
+            else:
+                out["diversity"] = -diversity(model, xb, Z, mask, kind=dv.aggregation, p=dv.p)
         return out
 
     def _away_from_interfaces(self, x: Tensor) -> Tensor:
