@@ -82,6 +82,9 @@ class Trainer:
         run_dir: where metrics.jsonl and checkpoints go (None: nothing is written).
         progress: show a progress bar.
         hooks: optional callables ``hook(trainer, step, losses)`` run after each step.
+        dist: a :class:`ginn.train.distributed.DistContext` for data-parallel training (torchrun):
+            the task trains its shard, losses and gradients are averaged over ranks, only rank 0
+            writes; None: a single process.
     """
 
     def __init__(
@@ -91,12 +94,15 @@ class Trainer:
         run_dir: str | Path | None = None,
         progress: bool = True,
         hooks: list[Callable] | None = None,
+        dist=None,
     ):
         self.task, self.cfg = task, cfg
+        self.dist = dist
+        self.is_main = dist is None or dist.is_main
         self.run_dir = Path(run_dir) if run_dir is not None else None
-        if self.run_dir is not None:
+        if self.run_dir is not None and self.is_main:
             self.run_dir.mkdir(parents=True, exist_ok=True)
-        self.progress = progress
+        self.progress = progress and self.is_main
         self.hooks = hooks or []
         self.device = torch.device(cfg.device)
         self.dtype = DTYPES[cfg.training.dtype]
@@ -105,6 +111,11 @@ class Trainer:
         torch.manual_seed(cfg.seed)
         self.gen = torch.Generator(device=self.device).manual_seed(cfg.seed)
         self.model = task.build_model().to(device=self.device, dtype=self.dtype)
+        if dist is not None:
+            if not hasattr(task, "distribute"):
+                raise GinnError(f"task kind {task.kind!r} does not support distributed training")
+            task.distribute(dist)
+            dist.broadcast_parameters(self.model)
         t = cfg.training
         self.optimizer = torch.optim.Adam(self.model.parameters(), lr=t.lr)
         self.lr_scale = 1.0
@@ -125,7 +136,8 @@ class Trainer:
         return None if self.run_dir is None else self.run_dir / "checkpoints" / "last.pt"
 
     def state_dict(self) -> dict:
-        return {
+        """The checkpoint; distributed: a collective (every rank's task and RNG state under "ranks")."""
+        state = {
             "format": "ginn-checkpoint-1",
             "step": self.step,
             "elapsed": self.elapsed,
@@ -138,14 +150,22 @@ class Trainer:
             "task": self.task.state_dict(),
             "rng": rng_state(self.gen),
         }
+        if self.dist is not None:
+            state["ranks"] = self.dist.gather_objects({"task": self.task.state_dict(), "rng": rng_state(self.gen)})
+        return state
 
     def load_state_dict(self, state: dict) -> None:
         self.model.load_state_dict(state["model"])
         self.optimizer.load_state_dict(state["optimizer"])
         self.scheduler.load_state_dict(state["scheduler"])
         self.balancer.load_state_dict(state["balancer"])
-        self.task.load_state_dict(state["task"])
-        set_rng_state(state["rng"], self.gen)
+        ranks = state.get("ranks") if self.dist is not None else None
+        if ranks is not None and len(ranks) == self.dist.world:  # same world size: exact continuation
+            self.task.load_state_dict(ranks[self.dist.rank]["task"])
+            set_rng_state(ranks[self.dist.rank]["rng"], self.gen)
+        else:
+            self.task.load_state_dict(state["task"])
+            set_rng_state(state["rng"], self.gen)
         self.step = int(state["step"])
         self.elapsed = float(state.get("elapsed", 0.0))
         self.lr_scale = float(state.get("lr_scale", 1.0))
@@ -154,7 +174,11 @@ class Trainer:
 
     def save(self) -> None:
         if self.checkpoint_path is not None:
-            save_checkpoint(self.checkpoint_path, self.state_dict())
+            state = self.state_dict()
+            if self.is_main:
+                save_checkpoint(self.checkpoint_path, state)
+            if self.dist is not None:
+                self.dist.barrier()
 
     def resume(self) -> bool:
         """Load the last checkpoint of ``run_dir`` if there is one. Returns whether it did."""
@@ -189,7 +213,7 @@ class Trainer:
     # --- logging -------------------------------------------------------------------------------
 
     def _log(self, record: dict) -> None:
-        if self.run_dir is None:
+        if self.run_dir is None or not self.is_main:
             return
         with open(self.run_dir / "metrics.jsonl", "a") as fh:
             fh.write(json.dumps(record) + "\n")
@@ -205,12 +229,16 @@ class Trainer:
         active = self.active_terms(step)
         self.optimizer.zero_grad(set_to_none=True)
         losses = self.task.loss_terms(self.model, step, active, self.gen)
+        if self.dist is not None:  # values: means over all ranks; gradients: this rank's share
+            losses = self.dist.globalize(losses)
         total = self.balancer.combine({k: v for k, v in losses.items() if k in active}, step)
         values = {k: float(v.detach()) for k, v in losses.items()}
         values["total"] = float(total.detach())
         ok = math.isfinite(values["total"])
         if ok:
             total.backward()
+            if self.dist is not None:
+                self.dist.average_gradients(self.model.parameters())
             grads = [p.grad for p in self.model.parameters() if p.grad is not None]
             gnorm = torch.linalg.vector_norm(torch.stack([torch.linalg.vector_norm(g) for g in grads])) if grads else torch.zeros(())
             ok = bool(torch.isfinite(gnorm))
@@ -262,7 +290,7 @@ class Trainer:
                             bar.set_postfix({k: f"{v:.2e}" for k, v in values.items() if not k.startswith("_") and k != "grad_norm"}, refresh=False)
                 if self.step % t.checkpoint_every == 0 and self.step > 0 and values is not None:
                     self.save()
-                if flag.stop:
+                if flag.stop if self.dist is None else self.dist.any(flag.stop):
                     status = "interrupted"
                     break
         if bar is not None:
