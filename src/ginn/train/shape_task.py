@@ -103,7 +103,7 @@ class ShapeTask(Task):
 
     def connectedness_loss(self):
         if self._conn is None:
-            from ..topology.connectedness import make_connectedness_loss
+            from ..topology import make_connectedness_loss
 
             self._conn = make_connectedness_loss(
                 self.problem.domain,
