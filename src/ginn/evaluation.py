@@ -108,7 +108,7 @@ def evaluate_shapes(
     try:
         for i, z in enumerate(codes):
             t = time.perf_counter()
-            sh = extract_shape(field, z, ctx.grid, adaptive=adaptive)
+            sh = extract_shape(field, z, ctx.grid, adaptive=adaptive, timings=tm)
             tm["extract"] = tm.get("extract", 0.0) + time.perf_counter() - t
             shapes.append(shape_metrics(sh, ctx, field, z, n_strain_samples=n_strain_samples, seed=seed + i, timings=tm))
             if len(codes) > 1:

@@ -240,11 +240,23 @@ class ExtractedShape:
         return self.values <= 0
 
 
-def extract_shape(field: Field, z: Tensor | None, grid: Grid, *, adaptive: bool = True) -> ExtractedShape:
-    """Sample ``field(., z)`` on ``grid``, extract its closed boundary and label its components."""
+def extract_shape(
+    field: Field, z: Tensor | None, grid: Grid, *, adaptive: bool = True, timings: dict | None = None
+) -> ExtractedShape:
+    """Sample ``field(., z)`` on ``grid``, extract its closed boundary and label its components
+    (``timings``, when given, receives the seconds of the three steps)."""
+    import time
+
+    t0 = time.perf_counter()
     values = sample_field(field, grid, z, adaptive=adaptive)
+    t1 = time.perf_counter()
     boundary = extract_boundary(values, grid, close=True)
+    t2 = time.perf_counter()
     labels, n = label_components(values <= 0)
+    t3 = time.perf_counter()
+    if timings is not None:
+        for k, v in (("extract.sample_field", t1 - t0), ("extract.marching", t2 - t1), ("extract.label", t3 - t2)):
+            timings[k] = timings.get(k, 0.0) + v
     return ExtractedShape(values, boundary, labels, n)
 
 
