@@ -195,3 +195,25 @@ def test_empty_shape_gives_strict_json():
     json.dumps(r, allow_nan=False)
     assert r["mean"]["b0"] == pytest.approx(2 / 3)
     assert r["diversity_mean"] == pytest.approx(np.sqrt(2) * 0.2, abs=2e-3)  # over the two disks
+
+
+class RectMinusDisk(Rect):
+    """[-0.9, 0.9] x [-0.4, 0.4] minus the disk of radius 0.1 at the origin (the obstacle's E)."""
+
+    def __init__(self):
+        super().__init__((-0.9, -0.4), (0.9, 0.4))
+
+    def sdf(self, x):
+        return torch.maximum(super().sdf(x), 0.1 - x.norm(dim=-1))
+
+
+def test_components_in_design_region_split_by_an_obstacle():
+    P = Problem("t", Box((-1.0, -0.5), (1.0, 0.5)), design_region=RectMinusDisk())
+    strip = as_field(Rect((-0.9, -0.08), (0.9, 0.08)).sdf)  # runs through the obstacle
+    s = evaluate_shapes(strip, None, P, 512)["shapes"][0]
+    assert s["b0"] == 1 and s["b0_in_design_region"] == 2
+    assert s["disconnected_volume"] == 0.0
+    cut = 2 * (0.08 * 0.06 + 0.01 * math.asin(0.8))  # strip cap disk
+    vol_E = 1.44 - math.pi * 0.01
+    assert s["disconnected_volume_in_design_region"] == pytest.approx((0.288 - cut) / 2 / vol_E, rel=0.02)
+    assert s["volume_outside"] == pytest.approx(cut / (2.0 - vol_E), rel=0.03)
