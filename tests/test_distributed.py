@@ -105,3 +105,24 @@ def test_odd_shard_is_a_config_error():
     assert ctx.shard(6) == (0, 2)
     with pytest.raises(ConfigError, match="not divisible"):
         ctx.shard(4)
+
+
+@pytest.mark.slow
+def test_torchrun_cli_train_and_resume(tmp_path):
+    """``torchrun --nproc_per_node=2 -m ginn train`` then ``... -m ginn resume`` (CLI end to end)."""
+    run = tmp_path / "run"
+    env = dict(os.environ, OMP_NUM_THREADS="1")
+    torchrun = [sys.executable, "-m", "torch.distributed.run", "--nproc_per_node=2", f"--master_port={_free_port()}", "-m", "ginn"]
+    sets = ["--set", "latents.n_shapes=4", "--set", "sampling.n_domain=128", "--set", "model.hidden=[16,16]",
+            "--set", "training.checkpoint_every=1"]
+    r = subprocess.run(torchrun + ["train", "obstacle", "--preset", "demo", "--iterations", "2", "--out", str(run),
+                                   "--quiet", "--no-results", *sets], env=env, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert load_checkpoint(run / "checkpoints" / "last.pt")["step"] == 2
+    r = subprocess.run([sys.executable, "-m", "torch.distributed.run", "--nproc_per_node=2", f"--master_port={_free_port()}",
+                        "-m", "ginn", "resume", str(run), "--iterations", "3", "--quiet", "--no-results"],
+                       env=env, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr[-2000:]
+    ck = load_checkpoint(run / "checkpoints" / "last.pt")
+    assert ck["step"] == 3 and len(ck["ranks"]) == 2
+    assert '"completed"' in (run / "status.json").read_text()

@@ -32,6 +32,8 @@ def _say(msg: str, quiet: bool = False) -> None:
 def _train_and_finish(trainer, task, run_dir: Path, quiet: bool, results: bool) -> int:
     from .train.run import write_status
 
+    if not trainer.is_main:  # distributed: ranks > 0 train and write nothing
+        return 130 if trainer.train().status == "interrupted" else 0
     write_status(run_dir, "running", trainer.step, trainer.elapsed)
     res = trainer.train()
     write_status(run_dir, res.status, res.step, res.seconds)
@@ -54,6 +56,7 @@ def cmd_train(args) -> int:
     from .problems import load_spec
     from .train.registry import make_task, resolve_config
     from .train.run import new_run_dir, write_run_files
+    from .train.distributed import init_distributed, on_main, shutdown
     from .train.trainer import Trainer
 
     _check_device(args.device)
@@ -68,16 +71,24 @@ def cmd_train(args) -> int:
             raise ConfigError("--iterations must be >= 0")
         over["training"] = {"iterations": args.iterations}
     cfg = resolve_config(spec, args.preset, over, parse_set(args.sets))
-    task = make_task(spec, cfg)
-    run_dir = new_run_dir(spec.name, args.out)
-    write_run_files(run_dir, cfg, Path(spec.source) if Path(spec.source).is_file() else None)
-    _say(f"training {spec.name}" + (f" (preset {args.preset})" if args.preset else "") + f" on {cfg.device}; run directory {run_dir}", args.quiet)
-    trainer = Trainer(task, cfg, run_dir, progress=not args.quiet)
-    return _train_and_finish(trainer, task, run_dir, args.quiet, not args.no_results)
+    dist = init_distributed(cfg.device)  # None unless started by torchrun
+    try:
+        task = make_task(spec, dist.localize(cfg) if dist else cfg)
+        run_dir = on_main(dist, lambda: new_run_dir(spec.name, args.out))
+        if dist is None or dist.is_main:
+            write_run_files(run_dir, cfg, Path(spec.source) if Path(spec.source).is_file() else None)
+        where = f"{cfg.device}" if dist is None else f"{dist.world} x {dist.device} ({dist.backend})"
+        _say(f"training {spec.name}" + (f" (preset {args.preset})" if args.preset else "") + f" on {where}; run directory {run_dir}",
+             args.quiet or (dist is not None and not dist.is_main))
+        trainer = Trainer(task, task.cfg, run_dir, progress=not args.quiet, dist=dist)
+        return _train_and_finish(trainer, task, run_dir, args.quiet, not args.no_results)
+    finally:
+        shutdown(dist)
 
 
 def cmd_resume(args) -> int:
     from .train.config import build_config
+    from .train.distributed import init_distributed, shutdown
     from .train.run import load_run, read_config
     from .train.trainer import Trainer
 
@@ -85,12 +96,17 @@ def cmd_resume(args) -> int:
     cfg = read_config(run_dir)
     if args.iterations is not None:
         cfg = build_config(config_to_dict(cfg), {"training": {"iterations": args.iterations}})
-    run = load_run(run_dir)
-    trainer = Trainer(run.task, cfg, run_dir, progress=not args.quiet)
-    if not trainer.resume():
-        raise GinnError(f"{run_dir}: no checkpoint to resume from")
-    _say(f"resuming {run_dir} at iteration {trainer.step} of {cfg.training.iterations}", args.quiet)
-    return _train_and_finish(trainer, run.task, run_dir, args.quiet, not args.no_results)
+    dist = init_distributed(cfg.device)  # None unless started by torchrun
+    try:
+        cfg = dist.localize(cfg) if dist else cfg
+        run = load_run(run_dir, device=cfg.device)
+        trainer = Trainer(run.task, cfg, run_dir, progress=not args.quiet, dist=dist)
+        if not trainer.resume():
+            raise GinnError(f"{run_dir}: no checkpoint to resume from")
+        _say(f"resuming {run_dir} at iteration {trainer.step} of {cfg.training.iterations}", args.quiet or not trainer.is_main)
+        return _train_and_finish(trainer, run.task, run_dir, args.quiet, not args.no_results)
+    finally:
+        shutdown(dist)
 
 
 def cmd_problems(args) -> int:

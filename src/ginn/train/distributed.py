@@ -167,9 +167,14 @@ class DistContext:
     def all_gather_cat_autograd(self, t: Tensor, dim: int = 0) -> Tensor:
         """As :meth:`all_gather_cat`, differentiable: the backward sums every rank's gradient of
         this rank's part (``torch.distributed.nn.functional.all_gather``)."""
+        import warnings
+
         from torch.distributed.nn.functional import all_gather
 
-        return torch.cat(all_gather(t.contiguous()), dim=dim)
+        with warnings.catch_warnings():  # deprecated in favour of a private API; still the public one
+            warnings.simplefilter("ignore", FutureWarning)
+            parts = all_gather(t.contiguous())
+        return torch.cat(parts, dim=dim)
 
     def barrier(self) -> None:
         if self.backend == "nccl":
@@ -209,12 +214,30 @@ def init_distributed(device: str = "cpu", timeout_s: float = 1800.0) -> DistCont
 
 
 def shutdown(ctx: DistContext | None) -> None:
-    """Leave the process group (after a final barrier)."""
+    """Leave the process group (no barrier: a rank that failed must not hang the others)."""
     if ctx is not None and tdist.is_initialized():
+        tdist.destroy_process_group()
+
+
+def on_main(ctx: DistContext | None, fn):
+    """``fn()`` run on rank 0 only, its result (e.g. a new run directory) broadcast to every rank.
+
+    A :class:`ginn.errors.GinnError` raised on rank 0 is raised on every rank, so all stop together.
+    """
+    from ..errors import GinnError
+
+    if ctx is None:
+        return fn()
+    result, err = None, None
+    if ctx.is_main:
         try:
-            ctx.barrier()
-        finally:
-            tdist.destroy_process_group()
+            result = fn()
+        except GinnError as e:
+            err = e
+    result, err = ctx.broadcast_object((result, err))
+    if err is not None:
+        raise err
+    return result
 
 
 def cross_values_sharded(field, xb_local: Tensor, Z_local: Tensor, mask_local: Tensor | None, ctx: DistContext) -> tuple[Tensor, Tensor | None]:
