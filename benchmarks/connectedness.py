@@ -15,6 +15,11 @@ Measures (median over repeats):
 The last line is the share of a training step spent in connectedness.
 
 Usage: ``python benchmarks/connectedness.py [--every 10] [--steps 30] [--grid 16]``
+
+``--compare two-disks,three-disks,two-spheres`` instead compares the two methods on analytic
+cases: a SIREN fitted to disjoint balls, then an interface loss on their outer caps plus
+``--weight`` times the connectedness loss (and a control with weight 0), reporting the steps
+until b0 = 1, the time per step and the final interface RMS.
 """
 
 from __future__ import annotations
@@ -69,6 +74,73 @@ def fit_to_blobs(model, Z, box, steps: int) -> None:
         opt.step()
 
 
+def _analytic_case(name: str):
+    """Domain, centres and radius of the analytic comparison cases."""
+    if name == "two-disks":
+        return Box((-1.0, -1.0), (1.0, 1.0)), torch.tensor([[-0.5, 0.0], [0.5, 0.0]]), 0.25
+    if name == "three-disks":
+        return Box((-1.0, -1.0), (1.0, 1.0)), torch.tensor([[-0.65, 0.0], [0.0, 0.05], [0.7, 0.0]]), 0.13
+    if name == "two-spheres":
+        return Box((-1.0,) * 3, (1.0,) * 3), torch.tensor([[-0.5, 0.0, 0.0], [0.5, 0.0, 0.0]]), 0.25
+    raise ValueError(name)
+
+
+def compare(name: str, method: str, weight: float, steps: int, seed: int = 0) -> str:
+    """Fit a SIREN to disjoint balls, then train interface loss + weight * connectedness until
+    b0 = 1 (checked on a grid after every step). Returns one line of results."""
+    box, C, R = _analytic_case(name)
+    d = C.shape[1]
+    torch.manual_seed(seed)
+
+    def target(x):
+        return ((x[:, None, :] - C[None]).norm(dim=-1) - R).min(dim=1).values
+
+    model = Siren(d, [32] * 3 if d == 2 else [64] * 3, w0_first=6.0)
+    opt = torch.optim.Adam(model.parameters(), lr=3e-3)
+    sched = torch.optim.lr_scheduler.StepLR(opt, 400, 0.3)
+    g = torch.Generator().manual_seed(seed)
+    for _ in range(1200):
+        x = torch.rand(2048, d, generator=g) * 2 - 1
+        loss = ((model(x) - target(x)) ** 2).mean()
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+        sched.step()
+    res = 128 if d == 2 else 48
+    b_start = int(b0(model, None, box, res)[0])
+    # interface: boundary points facing away from the centroid (the outer caps)
+    u = torch.randn(4000, d, generator=g)
+    u = u / u.norm(dim=1, keepdim=True)
+    pts = (C[:, None, :] + R * u[None]).reshape(-1, d)
+    away = ((pts - C.mean(0)) * u.repeat(C.shape[0], 1)).sum(1) > 0.3 * R
+    xi = pts[away & (target(pts).abs() < 1e-6)][:512]
+    grid = (16 if d == 2 else 10) if method == "surface-network" else (64 if d == 2 else 32)
+    conn = make_connectedness_loss(box, None, ConnectednessConfig(method=method, every=10, grid=grid))
+    opt = torch.optim.Adam(model.parameters(), lr=1e-4)
+    t_conn = t_all = 0.0
+    hit = None
+    i = 0
+    for i in range(steps):
+        t = time.perf_counter()
+        lc = conn(model, None)
+        t_conn += time.perf_counter() - t
+        loss = (model(xi) ** 2).mean() + weight * lc
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+        t_all += time.perf_counter() - t
+        if int(b0(model, None, box, res)[0]) == 1:
+            hit = i + 1
+            break
+    n = i + 1
+    rms = (model(xi) ** 2).mean().sqrt().item()
+    return (
+        f"{name:12s} {method:20s} w={weight:<4} b0 {b_start}->{int(b0(model, None, box, res)[0])} "
+        f"steps to b0=1: {hit} | connectedness {1000 * t_conn / n:.1f} ms/step, step {1000 * t_all / n:.1f} ms "
+        f"| interface RMS {rms:.4f}"
+    )
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--every", type=int, default=10)
@@ -77,8 +149,16 @@ def main() -> None:
     ap.add_argument("--ph-grid", type=int, default=64)
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--fit-steps", type=int, default=400, help="pre-fit to disjoint disks (0: initial SIREN)")
+    ap.add_argument("--compare", default="", help="comma-separated analytic cases (two-disks,three-disks,"
+                    "two-spheres): compare the two methods instead of timing the obstacle setting")
+    ap.add_argument("--weight", type=float, default=0.1)
     args = ap.parse_args()
     torch.set_num_threads(1)
+    if args.compare:
+        for name in args.compare.split(","):
+            for method, w in (("surface-network", 0.0), ("surface-network", args.weight), ("persistent-homology", args.weight)):
+                print(compare(name, method, w, 300), flush=True)
+        return
     t0 = time.perf_counter()
     torch.manual_seed(0)
     box = Box((-1.0, -0.5), (1.0, 0.5))
