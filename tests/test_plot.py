@@ -30,6 +30,13 @@ def is_png(p):
     return p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+def test_loss_series_order():
+    from ginn.plot import _series_order
+
+    keys = ["lr", "_boundary_converged", "interface", "total", "eikonal", "grad_norm"]
+    assert sorted(keys, key=_series_order) == ["total", "eikonal", "interface", "grad_norm", "lr", "_boundary_converged"]
+
+
 def test_interpolation_latents_sorted_with_midpoints():
     Z = torch.tensor([[1.0], [0.0], [0.5]])
     lat, trained = interpolation_latents(Z)
@@ -45,6 +52,7 @@ def test_loss_curves_from_nested_jsonl(tmp_path):
     with log.open("w") as fh:
         for i in range(30):
             fh.write(json.dumps({"step": i, "loss": 1.0 / (i + 1), "terms": {"eikonal": 0.5, "interface": 2.0**-i}}) + "\n")
+        fh.write(json.dumps({"step": 30, "event": "rollback", "lr_scale": 0.5}) + "\n")
         fh.write("not json\n")
     p = plot_loss_curves(log, tmp_path / "loss.png")
     assert is_png(p)

@@ -389,12 +389,26 @@ def _flatten(d: dict, prefix: str = "") -> dict:
 
 
 _STEP_KEYS = ("step", "epoch", "iteration", "iter", "it")
+_SKIP_KEYS = ("time", "seconds", "lr_scale")
+_LAST_KEYS = ("lr", "grad_norm")
+
+
+def _series_order(k: str) -> tuple:
+    """``total``/``loss`` first, then the loss terms, then ``lr``/``grad_norm``, then ``_diagnostics``."""
+    if k in ("total", "loss") or k.startswith("loss"):
+        return (0, k)
+    if k.startswith("_"):
+        return (3, k)
+    if k in _LAST_KEYS:
+        return (2, k)
+    return (1, k)
 
 
 def plot_loss_curves(metrics_jsonl: str | Path, path: str | Path, keys: Sequence[str] | None = None) -> Path:
     """Every numeric series of a JSON-lines log (nested dicts flattened as ``a.b``) against the
-    step (``step``/``epoch``/``iteration``, else the line number); log scale where positive.
-    Series are grouped in panels: ``loss*`` keys first, then the rest."""
+    step (``step``/``epoch``/``iteration``, else the line number); log scale where positive and
+    spanning decades. One panel per series: ``total`` first, then the loss terms, ``lr`` and
+    ``grad_norm``, then ``_diagnostics``; wall-clock keys (``time``) are skipped."""
     rows = []
     for line in Path(metrics_jsonl).read_text().splitlines():
         line = line.strip()
@@ -407,12 +421,12 @@ def plot_loss_curves(metrics_jsonl: str | Path, path: str | Path, keys: Sequence
     for i, r in enumerate(rows):
         step = next((r[k] for k in _STEP_KEYS if k in r), float(i))
         for k, v in r.items():
-            if k in _STEP_KEYS or (keys is not None and k not in keys) or not math.isfinite(v):
+            if k in _STEP_KEYS or k in _SKIP_KEYS or (keys is not None and k not in keys) or not math.isfinite(v):
                 continue
             series.setdefault(k, ([], []))
             series[k][0].append(step)
             series[k][1].append(v)
-    names = sorted(series, key=lambda k: (not k.startswith("loss"), k))
+    names = sorted(series, key=_series_order)
     n = max(1, len(names))
     cols = min(n, 3)
     nrows = int(math.ceil(n / cols))
