@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import torch
 from torch import Tensor
 
-from .fields import Field, evaluate
+from .fields import Field, evaluate, value
 
 
 @dataclass
@@ -55,7 +55,7 @@ def project_to_zero(
     Arguments:
         field: callable ``(x, z) -> (n,)``.
         x: start points ``(n, d)``; z: latent codes ``(n, k)`` or None.
-        steps: number of Newton steps.
+        steps: number of Newton steps (0: only check the start points).
         tol: a point has converged when ``|f| <= tol``.
         max_step: optional cap on the length of one step (damping far from the surface).
         bounds: optional ``(lo, hi)`` box; points leaving it are marked not converged.
@@ -72,8 +72,7 @@ def project_to_zero(
             ln = step.norm(dim=-1, keepdim=True)
             step = step * (max_step / ln.clamp_min(max_step))
         x = x - step
-    v = evaluate(field, x, z, grad=False, create_graph=False)
-    res = v.f.abs()
+    res = value(field, x, z).abs()
     ok = torch.isfinite(res) & (res <= tol) & torch.isfinite(x).all(dim=-1)
     if bounds is not None:
         lo, hi = bounds

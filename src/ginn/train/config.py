@@ -89,7 +89,7 @@ class SamplingConfig(_Strict):
     n_interface: int = Field(512, gt=0, description="points on the interfaces")
     n_band: int = Field(0, ge=0, description="extra points in a band around the interfaces")
     n_boundary: int = Field(512, ge=0, description="points projected onto f = 0 (curvature, strain, diversity)")
-    projection_steps: int = Field(8, ge=1, description="Newton steps of the zero-level-set projection")
+    projection_steps: int = Field(2, ge=0, description="Newton steps of the zero-level-set projection (after a free first step)")
     strain_interface_clearance: float = Field(0.0, ge=0, description="skip boundary points this close to an interface for the strain loss")
     strain_clip: float = Field(1000.0, gt=0, description="clip per-point surface strain at this value")
     interface_corner_weight: float = Field(1.0, ge=1, description="weight of interface corner samples (Plateau)")

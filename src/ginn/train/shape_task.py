@@ -202,22 +202,25 @@ class ShapeTask(Task):
         self, model: nn.Module, Z: Tensor | None, xd: Tensor, fd: Tensor, gd: Tensor
     ) -> tuple[Tensor, Tensor]:
         """Per-shape points on ``f = 0``: the ``n_boundary`` domain samples with the smallest
-        ``|f| / |grad f|`` (distance estimate), projected by Newton steps.
+        ``|f| / |grad f|`` (distance estimate), moved by one Newton step with the values and
+        gradients already computed in the main pass (no extra evaluation), then by
+        ``sampling.projection_steps`` further Newton steps, which also check convergence.
 
         Returns points ``(S, m, d)`` (detached) and a validity mask ``(S, m)``.
         """
         S = xd.shape[0]
         m = min(self.cfg.sampling.n_boundary, xd.shape[1])
         with torch.no_grad():
-            dist = fd.abs() / gd.norm(dim=-1).clamp_min(1e-6)
+            fd, gd = fd.detach(), gd.detach()
+            g2 = (gd * gd).sum(-1).clamp_min(1e-12)
+            dist = fd.abs() / g2.sqrt()
             idx = dist.topk(m, dim=1, largest=False).indices  # (S, m)
-            x0 = torch.gather(xd.detach(), 1, idx[:, :, None].expand(S, m, self.d))
-        if Z is None:
-            proj = project_to_zero(model, x0.reshape(-1, self.d), None, steps=self.cfg.sampling.projection_steps,
-                                   tol=1e-3, bounds=(self.lo, self.hi))
-        else:
-            Xf, Zf = fields.broadcast_latents(x0, Z)
-            proj = project_to_zero(model, Xf, Zf, steps=self.cfg.sampling.projection_steps, tol=1e-3, bounds=(self.lo, self.hi))
+            take = lambda t: torch.gather(t, 1, idx[:, :, None].expand(S, m, t.shape[-1]))  # noqa: E731
+            step = (fd / g2)[:, :, None] * gd
+            x0 = take(xd.detach() - step)
+        X = x0.reshape(-1, self.d)
+        Zf = None if Z is None else fields.broadcast_latents(x0, Z)[1]
+        proj = project_to_zero(model, X, Zf, steps=self.cfg.sampling.projection_steps, tol=1e-3, bounds=(self.lo, self.hi))
         return proj.x.reshape(S, m, self.d), proj.converged.reshape(S, m)
 
     def _boundary_losses(self, model, Z, xb: Tensor, mask: Tensor, active: set[str]) -> dict[str, Tensor]:
