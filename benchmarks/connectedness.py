@@ -25,6 +25,7 @@ until b0 = 1, the time per step and the final interface RMS.
 from __future__ import annotations
 
 import argparse
+import copy
 import statistics
 import time
 
@@ -48,12 +49,10 @@ class _ObstacleRegion(Region):
         return torch.maximum(box, 0.1 - x.norm(dim=-1))
 
 
-def fit_to_blobs(model, Z, box, steps: int) -> None:
+def fit_to_blobs(model, Z, box, steps: int):
     """Fit the model (values only, Adam) to three disjoint disks per shape that move smoothly
     with the latent, so that every shape starts disconnected, as early in the obstacle training
-    (Fig. 8a of the paper)."""
-    if steps <= 0:
-        return
+    (Fig. 8a of the paper). Returns the fitting loss as a closure (for small perturbing steps)."""
     g = torch.Generator().manual_seed(2)
     S = Z.shape[0]
     z = Z[:, 0]
@@ -62,16 +61,21 @@ def fit_to_blobs(model, Z, box, steps: int) -> None:
     centres = torch.stack([cx, cy], -1)  # (S, 3, 2)
     radius = 0.17 + 0.03 * z[:, None]
     lo, hi = box.tensors()
-    opt = torch.optim.Adam(model.parameters(), lr=5e-3)
-    for _ in range(steps):
+
+    def blob_loss():
         x = lo + (hi - lo) * torch.rand(S, 512, 2, generator=g)
         d = (x[:, :, None, :] - centres[:, None]).norm(dim=-1) - radius[:, None]
         target = d.min(dim=-1).values
         f = model(x.reshape(-1, 2), Z.repeat_interleave(512, 0))
-        loss = ((f - target.reshape(-1)) ** 2).mean()
+        return ((f - target.reshape(-1)) ** 2).mean()
+
+    opt = torch.optim.Adam(model.parameters(), lr=5e-3)
+    for _ in range(steps):
+        loss = blob_loss()
         opt.zero_grad()
         loss.backward()
         opt.step()
+    return blob_loss
 
 
 def _analytic_case(name: str):
@@ -166,7 +170,8 @@ def main() -> None:
     model = Siren(2, [64] * 4, latent_dim=1, w0_first=1.0)
     S = 16
     Z = torch.linspace(-1, 1, S)[:, None]
-    fit_to_blobs(model, Z, box, args.fit_steps)
+    blob_loss = fit_to_blobs(model, Z, box, args.fit_steps)
+    fitted = copy.deepcopy(model.state_dict())
     print(f"set-up {time.perf_counter() - t0:.1f} s; b0 (grid 128, in E) per shape: {b0(model, Z, box, 128, region).tolist()}")
     opt = torch.optim.Adam(model.parameters(), lr=1e-3)
     gen = torch.Generator().manual_seed(1)
@@ -214,20 +219,34 @@ def main() -> None:
         f"max {info['n_maxima']}), paths {info['n_paths']}, edges {info['n_edges']}, "
         f"components per shape {info['n_components']}"
     )
-    # warm updates after optimiser steps
-    warm, kinds = [], []
+    # warm updates, each after an Adam step (lr 1e-4) on the fitting loss, so the topology stays
+    conn = make_connectedness_loss(box, region, cfg)
+    conn(model, Z)
+    small = torch.optim.Adam(model.parameters(), lr=1e-4)
+    warm, kinds, pen = [], [], []
     for _ in range(args.steps):
-        step()
+        small.zero_grad()
+        blob_loss().backward()
+        small.step()
         t = time.perf_counter()
         conn(model, Z)
         warm.append(time.perf_counter() - t)
         kinds.append(conn.last_info["update"])
+        pen.append(conn.last_info["n_penalised"])
     ok = [w for w, k in zip(warm, kinds) if k != "full"]
     print(
-        f"warm update: {statistics.median(ok) if ok else float('nan'):.4f} s (median of {len(ok)} warm; "
-        f"{kinds.count('full')} of {len(kinds)} fell back to a full build)"
+        f"warm update: {statistics.median(ok) if ok else float('nan'):.4f} s (median of {len(ok)} warm, "
+        f"{statistics.median(pen):.0f} penalised saddles; {kinds.count('full')} of {len(kinds)} fell back "
+        "to a full build)"
     )
-    # training steps
+    # training steps, each phase from the fitted (disconnected) state with a fresh optimiser
+
+    def reset():
+        nonlocal opt
+        model.load_state_dict(fitted)
+        opt = torch.optim.Adam(model.parameters(), lr=1e-3)
+
+    reset()
     plain = [step()[0] for _ in range(args.steps)]
     t_plain = statistics.median(plain)
     print(f"step without connectedness: {t_plain:.3f} s")
@@ -235,6 +254,7 @@ def main() -> None:
     for method, grid in (("surface-network", args.grid), ("persistent-homology", args.ph_grid)):
         c = ConnectednessConfig(method=method, every=args.every, grid=grid)
         conn = make_connectedness_loss(box, region, c)
+        reset()
         tot, tcs, fulls = [], [], 0
         for _ in range(args.steps):
             ts, tc, inf = step(conn)

@@ -255,6 +255,41 @@ def test_design_region_ignores_outside_components():
     np.testing.assert_allclose(x.numpy(), [[0.4, 0.0]], atol=1e-3)
 
 
+class _WithoutDisk(Region):
+    """The plane minus a disk of radius r at the origin (an obstacle)."""
+
+    dim = 2
+
+    def __init__(self, r):
+        self.r = r
+
+    def sdf(self, x):
+        return self.r - x.norm(dim=-1)
+
+
+def test_fallback_when_the_saddle_lies_in_an_obstacle():
+    """Two disks either side of an obstacle: the separating saddle (the origin) lies outside E,
+    the surface network has no path inside E; the fallback penalises a PH death node in E."""
+    f = blobs([[-0.5, 0.0], [0.5, 0.0]], 0.25)
+    region = _WithoutDisk(0.15)
+    loss_fn = ConnectednessLoss(BOX2, region, ConnectednessConfig(), dtype=DT, options=TIGHT)
+    loss = loss_fn(f, None)
+    info = loss_fn.last_info
+    assert info["n_components"] == [2] and info["unreachable_pairs"] == 1 and info["n_fallback"] >= 1
+    x, _, p = loss_fn.penalised_points()
+    assert bool(region.contains(x).all())
+    assert float(p.sum()) == pytest.approx(1.0)
+    # the death node is where the gap is narrowest inside E: just outside the obstacle, on y = 0
+    # is impossible (inside it), so at the obstacle's rim
+    assert float(x.norm(dim=-1).min()) == pytest.approx(0.15, abs=2 * 2.0 / 32)
+    assert loss.item() == pytest.approx(float((p * f(x)).sum()), abs=1e-12)
+    off = ConnectednessLoss(
+        BOX2, region, ConnectednessConfig(), dtype=DT,
+        options=SurfaceNetworkLossOptions(critical=TIGHT.critical, fallback=False),
+    )
+    assert off(f, None).item() == 0.0 and off.last_info["n_penalised"] == 0
+
+
 def test_component_touching_the_domain_boundary():
     """A half-plane x <= -0.8 (no interior minimum) and a disk: found through the grid labels,
     the saddle between them penalised."""

@@ -34,7 +34,6 @@ from .critical import (
     CriticalPoints,
     find_critical_points,
     newton_refine,
-    reconverge,
 )
 from .persistent import DeathPoints, PersistenceOptions, PersistentHomologyLoss, death_points
 from .surface_network import PathOptions, SurfaceNetwork, trace_surface_network
@@ -86,7 +85,6 @@ __all__ = [
     "MAXIMUM",
     "find_critical_points",
     "newton_refine",
-    "reconverge",
     "trace_surface_network",
     "saddle_penalties",
     "shape_components",

@@ -54,6 +54,7 @@ from torch import Tensor
 
 from ..geometry.base import Box, Region
 from .components import field_on_grid, label_components
+from .persistent import death_points
 from .critical import (
     MINIMUM,
     SADDLE,
@@ -79,6 +80,8 @@ class SurfaceNetworkLossOptions:
             config.grid`` nodes along the longest axis (one batched forward pass, no
             derivatives), which finds components that touch the domain or design-region boundary
             (they have no interior minimum); 0 uses the surface network alone.
+        fallback: for component pairs with no path in G_a, also penalise the death nodes of the
+            cubical persistent homology of that grid (needs ``label_grid > 0``).
         seed: seed of the generator of the seed-grid jitter.
     """
 
@@ -86,6 +89,7 @@ class SurfaceNetworkLossOptions:
     paths: PathOptions = dc_field(default_factory=PathOptions)
     warm_steps: int = 5
     label_grid: int = 2
+    fallback: bool = True
     seed: int = 0
 
 
@@ -98,12 +102,15 @@ class Penalties:
         n_components: number of components of the shape found.
         unreachable_pairs: component pairs with no path in G_a.
         labels: component of each vertex ``(m,)`` (-1 outside the shape or discarded).
+        raw_total: sum of the penalties before normalisation (``weights * raw_total`` are the
+            raw ``sum 1 / (d_ij + eps)``).
     """
 
     weights: np.ndarray
     n_components: int
     unreachable_pairs: int
     labels: np.ndarray
+    raw_total: float = 0.0
 
 
 @dataclass
@@ -234,7 +241,7 @@ def saddle_penalties(g: ShapeGraph, eps: float) -> Penalties:
     total = weights.sum()
     if total > 0:
         weights /= total
-    return Penalties(weights, C, unreachable, labels)
+    return Penalties(weights, C, unreachable, labels, float(total))
 
 
 def grid_label_at(pos: np.ndarray, labels: np.ndarray, box: Box) -> np.ndarray:
@@ -362,6 +369,9 @@ class ConnectednessLoss:
         self._seeds: tuple[Tensor, Tensor] | None = None
         self._results: list[Penalties] = []
         self._region_mask: np.ndarray | None = None
+        self._grid_values = np.zeros(0)
+        self._grid_nodes = torch.zeros(0)
+        self._extra: tuple[Tensor, Tensor, np.ndarray] = (torch.zeros(0, domain.dim), torch.zeros(0, dtype=torch.long), np.zeros(0))
         self.last_info: dict = {}
 
     # --- state ---------------------------------------------------------------------------------
@@ -422,6 +432,8 @@ class ConnectednessLoss:
                 if self.region is not None
                 else np.ones(shape, dtype=bool)
             )
+        self._grid_values = vals
+        self._grid_nodes = pts.reshape(*shape, -1)
         return [label_components((v <= 0) & self._region_mask)[0] for v in vals]
 
     def _penalise(self, field, Z: Tensor | None, S: int) -> list[Penalties]:
@@ -431,7 +443,52 @@ class ConnectednessLoss:
         labels = self._grid_labels(field, Z)
         self.penalty, results = batch_penalties(self.network, valid, S, self.config.eps, labels, self.domain)
         self._results = results
+        self._fallback(results, labels is not None)
         return results
+
+    def _fallback(self, results: list[Penalties], have_grid: bool) -> None:
+        """For shapes with component pairs the surface network cannot join (no path in G_a, e.g.
+        the separating saddle lies outside the design region, inside an obstacle), penalise the
+        death nodes of the cubical persistent homology of the label grid (restricted to E) that
+        are farther than two grid cells from every penalised saddle, with raw weights
+        ``1 / (2 f + eps)``, normalised together with the surface-network weights of the shape."""
+        d = self.domain.dim
+        xs, ss, ws = [], [], []
+        assert self.points is not None and self.penalty is not None
+        if have_grid and self.options.fallback and any(r.unreachable_pairs for r in results):
+            vals = self._grid_values.copy()
+            vals[:, ~self._region_mask] = np.abs(vals).max() + 1.0
+            h = cell_size(self.domain, self.options.label_grid * self.config.grid)
+            shape_np = self.points.shape.cpu().numpy()
+            xall = self.points.x.detach().cpu().double().numpy()
+            for s, r in enumerate(results):
+                if r.unreachable_pairs == 0:
+                    continue
+                dp = death_points(vals[s])
+                if len(dp.value) == 0:
+                    continue
+                pos = self._grid_nodes[tuple(torch.from_numpy(dp.index).T)]
+                sel = np.nonzero((shape_np == s) & (self.penalty > 0))[0]
+                far = np.ones(len(dp.value), dtype=bool)
+                if len(sel):
+                    dist = np.linalg.norm(pos.detach().cpu().double().numpy()[:, None] - xall[sel][None], axis=-1)
+                    far = dist.min(axis=1) > 2 * h
+                if not far.any():
+                    continue
+                raw = 1.0 / (2.0 * dp.value[far] + self.config.eps)
+                total = r.raw_total + raw.sum()
+                self.penalty[sel] *= r.raw_total / total
+                xs.append(pos[torch.from_numpy(far)])
+                ss.append(torch.full((int(far.sum()),), s, dtype=torch.long, device=self.device))
+                ws.append(raw / total)
+        if xs:
+            self._extra = (torch.cat(xs), torch.cat(ss), np.concatenate(ws))
+        else:
+            self._extra = (
+                torch.zeros(0, d, device=self.device, dtype=self.dtype),
+                torch.zeros(0, dtype=torch.long, device=self.device),
+                np.zeros(0),
+            )
 
     def _same_latents(self, Z: Tensor | None) -> bool:
         if Z is None or self._latents is None:
@@ -474,7 +531,8 @@ class ConnectednessLoss:
             "n_maxima": int(counts["maxima"].sum()),
             "n_edges": int(len(self.network.edges)),
             "n_paths": int(self.network.n_paths),
-            "n_penalised": int((self.penalty > 0).sum()),
+            "n_penalised": int((self.penalty > 0).sum()) + len(self._extra[2]),
+            "n_fallback": len(self._extra[2]),
             "unreachable_pairs": int(sum(r.unreachable_pairs for r in self._results)),
         }
         self.step += 1
@@ -508,18 +566,18 @@ class ConnectednessLoss:
         return ok
 
     def _loss(self, field, Z: Tensor | None, S: int) -> Tensor:
-        assert self.points is not None and self.penalty is not None
-        k = np.nonzero(self.penalty > 0)[0]
-        kt = torch.from_numpy(k).to(self.device)
-        x = self.points.x[kt].detach()
-        z = latents_of(Z, self.points.shape[kt])
-        f = field(x, z)
-        p = torch.from_numpy(self.penalty[k]).to(device=f.device, dtype=f.dtype)
-        return (p * f).sum() / S
+        x, sh, p = self.penalised_points()
+        f = field(x.detach(), latents_of(Z, sh))
+        return (p.to(device=f.device, dtype=f.dtype) * f).sum() / S
 
     def penalised_points(self) -> tuple[Tensor, Tensor, Tensor]:
-        """The saddles penalised at the last call: positions ``(q, d)``, shapes ``(q,)`` and
-        weights ``(q,)``."""
+        """The points penalised at the last call (saddles first, then fallback grid nodes):
+        positions ``(q, d)``, shapes ``(q,)`` and weights ``(q,)`` (float64; they sum to 1 per
+        disconnected shape)."""
         assert self.points is not None and self.penalty is not None
         k = torch.from_numpy(np.nonzero(self.penalty > 0)[0]).to(self.device)
-        return self.points.x[k], self.points.shape[k], torch.from_numpy(self.penalty).to(self.device)[k]
+        ex, es, ep = self._extra
+        x = torch.cat([self.points.x[k], ex.to(self.points.x.dtype)])
+        sh = torch.cat([self.points.shape[k], es])
+        p = torch.from_numpy(np.concatenate([self.penalty[k.cpu().numpy()], ep])).to(self.device)
+        return x, sh, p

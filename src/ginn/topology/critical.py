@@ -26,7 +26,7 @@ All derivatives come from :mod:`ginn.fields` (no autograd here); everything retu
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 import torch
@@ -395,45 +395,3 @@ def find_critical_points(
     sel = torch.nonzero(c, as_tuple=False).squeeze(-1)[keep]
     sel = sel[torch.argsort(sh[sel], stable=True)]
     return classify(res.x[sel], sh[sel], res.f[sel], res.grad_norm[sel], res.hessian[sel])
-
-
-def reconverge(
-    field: Field,
-    Z: Tensor | None,
-    box: Box,
-    points: CriticalPoints,
-    grid: int,
-    steps: int,
-    options: CriticalPointOptions = CriticalPointOptions(),
-) -> tuple[CriticalPoints, bool]:
-    """Warm update: a few Newton steps from the stored points on the current field.
-
-    Returns:
-        the updated points and ``ok``: every point converged, stayed in the box, kept its Morse
-        index, and no two points of a shape merged. When ``ok`` is False the caller should run a
-        full :func:`find_critical_points`.
-    """
-    h = cell_size(box, grid)
-    if points.m == 0:
-        return points, True
-    res = newton_refine(
-        field,
-        points.x,
-        latents_of(Z, points.shape),
-        box,
-        steps=steps,
-        tol=options.tol,
-        max_step=options.max_step * h,
-        min_step=options.min_step * h,
-        eig_tol=options.eig_tol,
-    )
-    new = classify(res.x, points.shape, res.f, res.grad_norm, res.hessian)
-    ok = bool(res.converged.all()) and bool((new.index == points.index).all())
-    if ok:
-        ok = cluster(new.x, new.shape, new.grad_norm, options.merge_radius * h).numel() == new.m
-    return new, ok
-
-
-def with_values(points: CriticalPoints, f: Tensor) -> CriticalPoints:
-    """A copy with new values ``f`` ``(m,)``."""
-    return replace(points, f=f)
