@@ -141,9 +141,9 @@ def test_pruned_trial_is_recorded_with_its_run_directory(tmp_path, monkeypatch):
     assert [t.state.name for t in trials] == ["PRUNED", "PRUNED"]
     for t in trials:
         rd = Path(t.user_attrs["run_dir"])
-        assert json.loads((rd / "status.json").read_text()) == {"status": "pruned", "step": 2, "seconds": pytest.approx(
-            json.loads((rd / "status.json").read_text())["seconds"])}
-        assert t.intermediate_values == {2: pytest.approx(t.intermediate_values[2])} and len(t.intermediate_values) == 1
+        st = json.loads((rd / "status.json").read_text())
+        assert st["status"] == "pruned" and st["step"] == 2  # pruned at the first report (iteration 2)
+        assert list(t.intermediate_values) == [2] and t.intermediate_values[2] > -1.0
 
 
 # --- concurrent workers ---------------------------------------------------------------------------
