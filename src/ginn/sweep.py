@@ -519,6 +519,9 @@ def _plot(trials, path: Path, maximize: bool) -> None:
     ax.step(xs, best, where="post", color="C1", label="best so far")
     if pruned:
         ax.scatter([t.number for t in pruned], [min(ys)] * len(pruned), marker="x", s=14, color="0.6", label="pruned")
+    from matplotlib.ticker import MaxNLocator
+
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_xlabel("trial")
     ax.set_ylabel("objective")
     ax.legend(loc="best", fontsize=8)
