@@ -1,0 +1,33 @@
+"""Independent classical references for problems with known answers (discrete minimal surfaces)."""
+
+from .minimal_surface import (
+    MinimalSurface,
+    PLATEAU_AREA_ESTIMATE,
+    annulus_minimal_surface,
+    catenoid_area,
+    circle_curve,
+    cotangent_laplacian,
+    disk_minimal_surface,
+    mesh_area,
+    minimize_area,
+    plateau_polygon,
+    plateau_reference,
+    polygon_curve,
+    sample_surface,
+)
+
+__all__ = [
+    "MinimalSurface",
+    "PLATEAU_AREA_ESTIMATE",
+    "annulus_minimal_surface",
+    "catenoid_area",
+    "circle_curve",
+    "cotangent_laplacian",
+    "disk_minimal_surface",
+    "mesh_area",
+    "minimize_area",
+    "plateau_polygon",
+    "plateau_reference",
+    "polygon_curve",
+    "sample_surface",
+]
