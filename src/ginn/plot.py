@@ -187,7 +187,7 @@ def _envelope(problem: Problem, resolution: int) -> Boundary | None:
     return extract_boundary(v, g, close=True)
 
 
-def _interface_points(problem: Problem, n: int = 2000) -> np.ndarray:
+def _interface_points(problem: Problem, n: int = 300) -> np.ndarray:
     gen = torch.Generator().manual_seed(0)
     pts = [itf.sample(n, generator=gen, dtype=torch.float64)[0].numpy() for itf in problem.interfaces]
     return np.concatenate(pts) if pts else np.zeros((0, problem.dim))
@@ -202,7 +202,7 @@ def plot_views(
     color=SHAPE_COLOR,
     envelope: bool = True,
     interfaces: bool = True,
-    envelope_resolution: int = 48,
+    envelope_resolution: int = 32,
 ) -> Path:
     """Several views of one 3D shape in one PNG."""
     env = _envelope(problem, envelope_resolution) if envelope else None
@@ -455,7 +455,7 @@ def plot_run(
     resolution: int | None = None,
     views: Sequence[tuple[float, float]] = DEFAULT_VIEWS,
     max_view_shapes: int = 16,
-    max_render_resolution: int = 96,
+    max_render_resolution: int = 64,
 ) -> list[Path]:
     """All figures of a run into ``out_dir`` (see the module docstring); returns the paths.
 
