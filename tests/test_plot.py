@@ -4,7 +4,6 @@ import json
 
 import matplotlib
 import numpy as np
-import pytest
 import torch
 
 from _shapes import Disk, Rect, VerticalSegments

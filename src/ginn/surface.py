@@ -251,7 +251,7 @@ def sample_field(
     g = grid.coarsened(levels)
     v = _eval_nodes(field, g, np.arange(g.n_nodes), z, dtype, device, chunk).reshape(g.shape)
     if levels == 0:
-        return v.astype(store)
+        return v.astype(store, copy=False)
     exact = np.ones(g.shape, dtype=bool)
     parent_active = np.ones(g.cells, dtype=bool)
     for lev in range(levels, 0, -1):
@@ -278,10 +278,11 @@ def sample_field(
         if flat.size:
             v.reshape(-1)[flat] = _eval_nodes(field, g, flat, z, dtype, device, chunk)
         exact = ex | need
-        parent_active = active
-        for a in range(g.dim):
-            parent_active = np.repeat(parent_active, 2, axis=a)
-    return v.astype(store)
+        if lev > 1:
+            parent_active = active
+            for a in range(g.dim):
+                parent_active = np.repeat(parent_active, 2, axis=a)
+    return v.astype(store, copy=False)
 
 
 def interpolate(values: np.ndarray, grid: Grid, x: np.ndarray) -> np.ndarray:
