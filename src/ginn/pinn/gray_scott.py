@@ -67,8 +67,12 @@ class GrayScottParams(BaseModel):
     derivatives: Literal["fd", "spectral", "autograd"] = "fd"
     gradient_cap: float = Field(1.0, gt=0, description="the gradient reward saturates at this mean |grad|^2")
     diversity_distance: Literal["rms", "shift"] = "rms"
-    residual_gradient: Literal["full", "flow"] = Field(
-        "full", description="full: gradient of mean(R^2) (the paper); flow: descend along the PDE's own time derivative R")
+    residual_gradient: Literal["full", "flow", "step"] = Field(
+        "full", description="full: gradient of mean(R^2) (the paper); flow: descend along the PDE's own time derivative R; "
+        "step: regress on the sampled state advanced by a semi-implicit pseudo-time step (see the module docstring)")
+    flow_steps: int = Field(0, ge=0, description="with residual_gradient=flow/step: switch to full after this many iterations (0: never)")
+    step_dt: float = Field(1.0, gt=0, description="pseudo-time sub-step of residual_gradient=step")
+    step_count: int = Field(10, ge=1, description="sub-steps per target of residual_gradient=step (target time step_dt * step_count)")
     u_offset: float = Field(0.0, description="u = u_offset + network output (0: the paper's raw output)")
     v_offset: float = Field(0.0, description="v = v_offset + network output")
     output_scale: float = Field(1.0, gt=0, description="u = u_offset + output_scale * network output (same for v)")
@@ -178,6 +182,31 @@ def pattern_distance(V: Tensor, kind: str) -> Tensor:
     raise ValueError(f"unknown pattern distance {kind!r} (rms, shift)")
 
 
+def pseudo_time_step(W: Tensor, gs: GSParams, dt: float, count: int) -> Tensor:
+    """``count`` semi-implicit (IMEX Euler) steps of the Gray-Scott PDE on the training grid.
+
+    Diffusion and the linear decay (``-alpha u``, ``-(alpha + beta) v``) implicit per Fourier mode,
+    the rest (``-u v^2 + alpha``, ``+u v^2``) explicit; spectral Laplacian on the (translated) grid.
+    A state is a fixed point exactly when it solves the stationary equation 3 on the grid.
+
+    Arguments:
+        W: ``(S, 2, n, n)`` sampled ``(u, v)``.
+
+    Returns:
+        the advanced state, ``(S, 2, n, n)``.
+    """
+    n = W.shape[-1]
+    k = 2.0 * math.pi * torch.fft.fftfreq(n, d=1.0 / n, dtype=W.dtype, device=W.device)
+    k2 = k[:, None] ** 2 + k[None, :] ** 2
+    den = torch.stack([1.0 + dt * (gs.D_u * k2 + gs.alpha), 1.0 + dt * (gs.D_v * k2 + gs.alpha + gs.beta)])
+    for _ in range(count):
+        u, v = W[:, 0], W[:, 1]
+        uvv = u * v * v
+        N = torch.stack([W[:, 0] + dt * (gs.alpha - uvv), W[:, 1] + dt * uvv], dim=1)
+        W = torch.fft.ifft2(torch.fft.fft2(N) / den).real
+    return W
+
+
 class GrayScottTask(Task):
     """Generative PINN for stationary Gray-Scott patterns (see the module docstring)."""
 
@@ -245,11 +274,17 @@ class GrayScottTask(Task):
         out: dict[str, Tensor] = {}
         res = (Ru * Ru).mean() + (Rv * Rv).mean()
         if "residual" in active:
-            if p.residual_gradient == "full":
+            if p.residual_gradient == "full" or (p.flow_steps > 0 and step >= p.flow_steps):
                 out["residual"] = res
-            else:  # value mean(R^2), gradient -2 mean(R dW/dtheta): W moves along u_t = R_u, v_t = R_v
+            elif p.residual_gradient == "flow":  # value mean(R^2), gradient -2 mean(R dW/dtheta): W moves along u_t = R_u, v_t = R_v
                 flow = -2.0 * ((Ru.detach() * u).mean() + (Rv.detach() * v).mean())
                 out["residual"] = res.detach() + flow - flow.detach()
+            else:  # value mean(R^2), gradient of mean |W - sg(step(W))|^2
+                with torch.no_grad():
+                    target = pseudo_time_step(W.detach(), gs, p.step_dt, p.step_count)
+                d = W - target
+                fit = (d * d).mean() * 2.0
+                out["residual"] = res.detach() + fit - fit.detach()
         g2 = (G * G).sum(dim=(1, 2)).mean(dim=(-2, -1))  # (S,)
         if "gradient" in active:
             out["gradient"] = -torch.clamp(g2, max=p.gradient_cap).mean()
