@@ -180,7 +180,7 @@ def prepare_context(
     region = problem.design_region if problem.design_region is not None else _BoxRegion(problem.domain)
     ext = grid.extended(4)
     # adaptive: exact |sdf_E| near dE (the band below is inside the refined cells), sign elsewhere
-    sdf_ext = sample_field(as_field(region.sdf), ext, None, dtype=torch.float32, device="cpu")
+    sdf_ext = sample_field(as_field(region.sdf), ext, None, dtype=torch.float32, device="cpu", narrow_final=False)
     inner = tuple(slice(4, -4) for _ in range(grid.dim))
     in_design = sdf_ext[inner] <= 0
     weights = grid.node_weights()
