@@ -161,7 +161,7 @@ def test_finalize_and_verify_run_write_files(tmp_path):
     assert v0.shape == (16, 16)
     from ginn.pinn.verify import Thresholds, verify_run
 
-    out = verify_run(model, task.latents(), task.cfg.params, resolution=16, run_dir=tmp_path,
+    out = verify_run(model, task.latents(), task.cfg.params, resolution=16, out_dir=tmp_path,
                      thresholds=Thresholds(t_final=10.0))
     assert out["n_latents"] == 3 and 0 <= out["latents_passing"] <= 3
     assert np.load(tmp_path / "verify_u_02.npy").shape == (16, 16)
@@ -181,7 +181,7 @@ def test_quick_preset_acceptance(tmp_path):
     cfg = resolve_config(spec, "quick")
     task = make_task(spec, cfg)
     result = Trainer(task, cfg, tmp_path, progress=False).train()
-    out = verify_run(result.model, task.latents(), cfg.params, resolution=256, run_dir=tmp_path)
+    out = verify_run(result.model, task.latents(), cfg.params, resolution=256, out_dir=tmp_path)
     assert out["latents_passing"] >= 8, out["latents_passing"]
 
 

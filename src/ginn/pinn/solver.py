@@ -71,7 +71,7 @@ def relative_residual(u: np.ndarray, v: np.ndarray, p: GSParams) -> dict[str, fl
     ru = np.sqrt(np.mean((-uvv + p.alpha * (1.0 - u)) ** 2))
     rv = np.sqrt(np.mean((uvv - (p.alpha + p.beta) * v) ** 2))
     eu, ev = float(np.sqrt(np.mean(Ru**2))), float(np.sqrt(np.mean(Rv**2)))
-    rel_u, rel_v = eu / max(ru, 1e-300), ev / max(rv, 1e-300)
+    rel_u, rel_v = float(eu / max(ru, 1e-300)), float(ev / max(rv, 1e-300))
     return {"residual_u": eu, "residual_v": ev, "reaction_u": float(ru), "reaction_v": float(rv),
             "rel_u": rel_u, "rel_v": rel_v, "rel": max(rel_u, rel_v)}
 

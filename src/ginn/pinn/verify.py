@@ -101,7 +101,7 @@ def verify_fields(W: np.ndarray, params: GSParams, th: Thresholds = Thresholds()
             "distance_matrix": D.tolist(), "thresholds": th.__dict__.copy()}
 
 
-def verify_run(model: nn.Module, latents: Tensor, params, resolution: int = 256, run_dir: Path | None = None,
+def verify_run(model: nn.Module, latents: Tensor, params, resolution: int = 256, out_dir: Path | None = None,
                thresholds: Thresholds = Thresholds()) -> dict:
     """Verify a trained gray-scott model.
 
@@ -111,7 +111,7 @@ def verify_run(model: nn.Module, latents: Tensor, params, resolution: int = 256,
         params: :class:`ginn.pinn.solver.GSParams`, a
             :class:`ginn.pinn.gray_scott.GrayScottParams`, or the run's ``cfg.params`` dict.
         resolution: grid points per axis (256).
-        run_dir: if given, ``u`` and ``v`` of every latent are saved there as
+        out_dir: if given (the run directory), ``u`` and ``v`` of every latent are saved there as
             ``verify_u_{s:02d}.npy`` / ``verify_v_{s:02d}.npy`` (``(resolution, resolution)`` float64,
             ``[i, j]`` at ``x = (i, j) / resolution``).
 
@@ -128,12 +128,12 @@ def verify_run(model: nn.Module, latents: Tensor, params, resolution: int = 256,
     out = verify_fields(W, gs, thresholds)
     out["resolution"] = resolution
     files = []
-    if run_dir is not None:
-        run_dir = Path(run_dir)
-        run_dir.mkdir(parents=True, exist_ok=True)
+    if out_dir is not None:
+        out_dir = Path(out_dir)
+        out_dir.mkdir(parents=True, exist_ok=True)
         for s in range(W.shape[0]):
             for c, name in enumerate("uv"):
-                f = run_dir / f"verify_{name}_{s:02d}.npy"
+                f = out_dir / f"verify_{name}_{s:02d}.npy"
                 np.save(f, W[s, c])
                 files.append(str(f))
     out["files"] = files
