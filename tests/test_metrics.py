@@ -101,6 +101,23 @@ def test_boundary_overlap_counts_a_shape_boundary_coinciding_with_dE():
     assert s["volume_outside"] == 0.0
 
 
+def test_boundary_overlap_independent_of_where_dE_lies_between_nodes():
+    # h = 1/128; the sides x = +-a lie on grid nodes, the sides y = +-b halfway between nodes:
+    # the hat weights give both the same weight per length (a hard band |sdf| < h would not).
+    from ginn.metrics import boundary_overlap, extract_shape, prepare_context
+
+    a, b = 1 - 12 / 128, 1 - 51.5 / 128
+    P = Problem("t", BOX2, design_region=Rect((-a, -b), (a, b)))
+    strip = lambda x, z=None: x[:, 1].abs() - 0.2  # covers 2 x 0.4 of the sides x = +-a
+    ctx = prepare_context(P, 256)
+    sh = extract_shape(strip, None, ctx.grid)
+    h, perimeter = 1 / 128, 4 * (a + b)
+    got = boundary_overlap(sh.values, ctx.grid, ctx.design_boundary_points, weights=ctx.design_boundary_weights)
+    assert 0.8 / perimeter - 0.003 <= got <= (0.8 + 4 * h) / perimeter + 0.003
+    unweighted = boundary_overlap(sh.values, ctx.grid, ctx.design_boundary_points)
+    assert abs(unweighted - 0.8 / perimeter) > 0.02  # what the weights correct
+
+
 def test_connected_interfaces_share():
     itf = VerticalSegments([-0.5, 0.5], 0.2)
     P = problem(interfaces=(itf,))

@@ -7,12 +7,14 @@ Names (the keys of ``metrics.json``) and estimators:
 * ``boundary_overlap`` = vol(Omega cap dE) / vol(dE): the design region's boundary is sampled
   (nearly) uniformly by projecting the nodes of a band ``|sdf_E| < h`` (on the grid extended four
   nodes beyond X, so the part of dE on the domain faces is sampled like the rest) onto ``sdf_E = 0``
-  with two Newton steps (finite-difference gradients); the metric is the fraction of these samples
+  with two Newton steps (finite-difference gradients), each weighted by the hat function
+  ``1 - |sdf_E| / h`` of its node; the metric is the weighted fraction of these samples
   in the shape or within one grid spacing of it (``f / |grad f| <= h``, multilinear interpolation
   of the grid values, exact near the shape's boundary): a shape boundary that coincides with dE
   counts, as it must for shapes that fill E up to its boundary.
-  A band of constant width holds a number of nodes proportional to the area it surrounds, so the
-  samples are uniform by area up to O(h * curvature).
+  Hat functions sum to one along every grid line, so the weight per unit area of dE does not depend
+  on where dE lies between the nodes (exactly for faces normal to an axis, on average otherwise),
+  and the samples are uniform by area up to O(h * curvature).
 * ``interface_cd1`` = CD1(dOmega, I) (equation 4): root mean square of the distances from interface
   samples to the extracted boundary of ``Omega cap X`` (contour / mesh, exact point-to-element
   distance).
@@ -118,7 +120,8 @@ class MetricContext:
         weights: trapezoid node weights ``(grid.shape)`` (float32).
         in_design: ``(grid.shape)`` bool, node in E.
         vol_design, vol_outside_design: vol(E) and vol(X \\ E).
-        design_boundary_points: ``(m, d)`` near-uniform samples of dE.
+        design_boundary_points: ``(m, d)`` near-uniform samples of dE, with
+            ``design_boundary_weights`` ``(m,)``.
         interface_points: ``(q, d)`` interface samples; ``interface_component``: ``(q,)`` global
             component index; ``n_interface_components``: n_I.
         eps: the connection tolerance (0.01 * unit_scale).
@@ -131,19 +134,27 @@ class MetricContext:
     vol_design: float
     vol_outside_design: float
     design_boundary_points: np.ndarray
+    design_boundary_weights: np.ndarray
     interface_points: np.ndarray
     interface_component: np.ndarray
     n_interface_components: int
     eps: float
 
 
-def _design_boundary_samples(region: Region, grid: Grid, sdf_ext: np.ndarray, ext: Grid, n_max: int, rng) -> np.ndarray:
+def _design_boundary_samples(
+    region: Region, grid: Grid, sdf_ext: np.ndarray, ext: Grid, n_max: int, rng
+) -> tuple[np.ndarray, np.ndarray]:
+    """Near-uniform samples of dE: band nodes ``|sdf| < h`` projected onto ``sdf = 0``, weighted by
+    the hat function ``1 - |sdf| / h`` (hat functions sum to one along every grid line, so a face at
+    any offset from the nodes gets the same total weight per area)."""
     h = float(grid.spacing.min())
-    band = np.flatnonzero(np.abs(sdf_ext.reshape(-1)) < h)
+    flat_sdf = sdf_ext.reshape(-1)
+    band = np.flatnonzero(np.abs(flat_sdf) < h)
     if band.size == 0:
-        return np.zeros((0, grid.dim))
+        return np.zeros((0, grid.dim)), np.zeros(0)
     if band.size > n_max:
         band = np.sort(rng.choice(band, size=n_max, replace=False))
+    w = 1.0 - np.abs(flat_sdf[band].astype(np.float64)) / h
     x = ext.points(band)
     step = 0.25 * h
     for _ in range(2):
@@ -155,7 +166,7 @@ def _design_boundary_samples(region: Region, grid: Grid, sdf_ext: np.ndarray, ex
             g[:, a] = (_region_sdf(region, x + e) - _region_sdf(region, x - e)) / (2 * step)
         g2 = np.maximum((g * g).sum(1), 1e-12)
         x = x - (s0 / g2)[:, None] * g
-    return x
+    return x, w
 
 
 def prepare_context(
@@ -180,13 +191,13 @@ def prepare_context(
     region = problem.design_region if problem.design_region is not None else _BoxRegion(problem.domain)
     ext = grid.extended(4)
     # adaptive: exact |sdf_E| near dE (the band below is inside the refined cells), sign elsewhere
-    sdf_ext = sample_field(as_field(region.sdf), ext, None, dtype=torch.float32, device="cpu", narrow_final=False)
+    sdf_ext = sample_field(as_field(region.sdf), ext, None, dtype=torch.float32, device="cpu")
     inner = tuple(slice(4, -4) for _ in range(grid.dim))
     in_design = sdf_ext[inner] <= 0
     weights = grid.node_weights()
     vol_E = float(weights[in_design].sum(dtype=np.float64))
     vol_out = float(weights[~in_design].sum(dtype=np.float64)) if problem.design_region is not None else 0.0
-    dE = _design_boundary_samples(region, grid, sdf_ext, ext, n_design_boundary_samples, rng)
+    dE, dE_w = _design_boundary_samples(region, grid, sdf_ext, ext, n_design_boundary_samples, rng)
     del sdf_ext
 
     pts, comps = [], []
@@ -210,6 +221,7 @@ def prepare_context(
         vol_design=vol_E,
         vol_outside_design=vol_out,
         design_boundary_points=dE,
+        design_boundary_weights=dE_w,
         interface_points=ip,
         interface_component=ic,
         n_interface_components=offset,
@@ -267,7 +279,13 @@ def volume_outside(inside: np.ndarray, in_design: np.ndarray, weights: np.ndarra
     return float(weights[inside & ~in_design].sum(dtype=np.float64)) / vol_outside_design
 
 
-def boundary_overlap(values: np.ndarray, grid: Grid, design_boundary_points: np.ndarray, tol: float | None = None) -> float | None:
+def boundary_overlap(
+    values: np.ndarray,
+    grid: Grid,
+    design_boundary_points: np.ndarray,
+    tol: float | None = None,
+    weights: np.ndarray | None = None,
+) -> float | None:
     """Fraction of the dE samples lying in the shape, up to ``tol`` (default: one grid spacing).
 
     A sample ``x`` counts when ``f(x) / |grad f(x)| <= tol`` (grid interpolation, central
@@ -288,7 +306,9 @@ def boundary_overlap(values: np.ndarray, grid: Grid, design_boundary_points: np.
         da = (interpolate(values, grid, x + e) - interpolate(values, grid, x - e)) / h[a]
         g2 += da * da
     inside = (f <= 0) | (f <= tol * np.sqrt(g2))
-    return float(np.mean(inside))
+    if weights is None:
+        return float(np.mean(inside))
+    return float(np.sum(weights * inside) / max(float(np.sum(weights)), 1e-300))
 
 
 def interface_cd1(boundary: Boundary, interface_points: np.ndarray) -> float | None:
@@ -506,7 +526,10 @@ def shape_metrics(
     )
     timed("connected_interfaces_share", lambda: connected_interfaces_share(shape, ctx))
     timed("interface_cd1", lambda: interface_cd1(shape.boundary, ctx.interface_points))
-    timed("boundary_overlap", lambda: boundary_overlap(shape.values, ctx.grid, ctx.design_boundary_points))
+    timed(
+        "boundary_overlap",
+        lambda: boundary_overlap(shape.values, ctx.grid, ctx.design_boundary_points, weights=ctx.design_boundary_weights),
+    )
     timed("volume_outside", lambda: volume_outside(inside, ctx.in_design, ctx.weights, ctx.vol_outside_design))
     timed(
         "surface_strain",
