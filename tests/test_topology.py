@@ -482,3 +482,27 @@ def test_training_connects_two_disks(method):
         results[weight] = steps
     assert results[0.0] is None  # the interface loss alone keeps the two components
     assert results[0.1] is not None and results[0.1] <= 300
+
+
+@pytest.mark.cuda
+@pytest.mark.parametrize("method", ["surface-network", "persistent-homology"])
+def test_losses_on_cuda(method):
+    """Both losses with the field and latents on a GPU: same penalised saddle as on the CPU."""
+    C = torch.tensor([[-0.5, 0.0], [0.5, 0.0]], dtype=DT, device="cuda")
+
+    def field(x, z):
+        c = C[None] + z[:, None, :] * torch.tensor([0.0, 0.3], dtype=DT, device="cuda")
+        d = torch.sqrt(((x[:, None, :] - c) ** 2).sum(-1) + DELTA**2) - 0.25
+        return -K * torch.logsumexp(-d / K, dim=1)
+
+    Z = torch.tensor([[0.0], [1.0]], dtype=DT, device="cuda")
+    cfg = ConnectednessConfig(method=method, grid=16 if method == "surface-network" else 65)
+    loss_fn = make_connectedness_loss(BOX2, _HalfPlane(-0.95), cfg, device="cuda", dtype=DT)
+    loss = loss_fn(field, Z)
+    assert loss.device.type == "cuda"
+    assert loss_fn.last_info["n_components"] == [2, 2]
+    x = loss_fn.penalised_points()[0] if method == "surface-network" else loss_fn.last_points[0]
+    x = x.cpu().numpy()
+    expected = np.array([[0.0, 0.0], [0.0, 0.3]])
+    tol = 1e-3 if method == "surface-network" else 2.0 / 64
+    assert np.abs(np.sort(x, axis=0) - expected).max() <= tol
