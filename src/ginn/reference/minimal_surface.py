@@ -315,7 +315,7 @@ def catenoid_area(radius: float, half_height: float) -> tuple[float, float]:
 
 
 # Area of the minimal surface spanning :func:`plateau_polygon`: Richardson extrapolation (``O(h^2)``)
-# of Pinkall-Polthier meshes with 16..64 rings (docs/mirror-plateau.md); uncertainty about 3e-4.
+# of Pinkall-Polthier meshes with 16..48 rings (docs/mirror-plateau.md); uncertainty about 1e-4.
 PLATEAU_AREA_ESTIMATE = 2.4674
 
 
