@@ -7,13 +7,14 @@ a cylindrical hole, and two cylindrical interfaces.
 Run:  .venv/bin/python benchmarks/metrics.py [--resolution 256] [--w0 2.0] [--threads 2] [--dense]
 Prints the per-stage and per-metric seconds, the number of field evaluations and the metrics.
 
-Measured (2026-11-23, the shared 2-core machine at load average 6-8, i.e. about a quarter of the
-CPU): 52-59 s in total. Adaptive sampling evaluates the network at 685k of the 17.0M nodes (4 %);
-a dense evaluation would take about 310 s even on an idle machine (54k points/s). Breakdown of the
-58.6 s run: prepare (design-region grid, dE and interface samples) 12.3 s, field sampling 28.9 s,
-marching cubes 1.4 s, labelling 2.7 s, b0 1.5 s, b0 in E 0.2 s, disconnected volume in E 0.7 s,
-connected interfaces 0.8 s, interface CD1 6.9 s (the interfaces of a random shape are far from it;
-KD-tree queries from far away are the slow case), surface strain 3.2 s, the rest < 0.2 s.
+Measured (2026-11-23, the shared 2-core machine at load average 13-14, i.e. a small fraction of
+the CPU): 57.2 s in total. Adaptive sampling evaluates the network at 464k of the 17.0M nodes
+(2.7 %); a dense evaluation would take about 310 s even on an idle machine (54k points/s).
+Breakdown: prepare (adaptive design-region grid, dE and interface samples) 17.7 s, field sampling
+21.9 s, marching cubes 1.0 s, labelling 2.5 s, b0 2.0 s, b0 in E 0.3 s, disconnected volume in
+E 0.8 s, connected interfaces 0.8 s, interface CD1 7.6 s (the interfaces of a random shape are far
+from it; KD-tree queries from far away are the slow case), surface strain 2.5 s, the rest < 0.2 s.
+Earlier, at load 6-8: 52-59 s with the previous (wider) last refinement level.
 """
 
 from __future__ import annotations

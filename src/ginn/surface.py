@@ -208,18 +208,17 @@ def _cell_slopes(v: np.ndarray, h: np.ndarray) -> np.ndarray:
     return out
 
 
-def _corner_stats(v: np.ndarray, cells: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per cell: min and max of the corner values and min of their absolute values."""
-    cmin = cmax = amin = None
+def _corner_stats(v: np.ndarray, cells: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """Per cell: min and max of the corner values, ``(cells)`` each."""
+    cmin = cmax = None
     for sl in _corner_slices(cells):
         c = v[sl]
         if cmin is None:
-            cmin, cmax, amin = c.copy(), c.copy(), np.abs(c)
+            cmin, cmax = c.copy(), c.copy()
         else:
             np.minimum(cmin, c, out=cmin)
             np.maximum(cmax, c, out=cmax)
-            np.minimum(amin, np.abs(c), out=amin)
-    return cmin, cmax, amin
+    return cmin, cmax
 
 
 def sample_field(
@@ -231,6 +230,7 @@ def sample_field(
     safety: float = 2.0,
     final_safety: float = 1.0,
     narrow_final: bool = True,
+    seed_margin: float = 0.5,
     min_coarse_cells: int = 8,
     chunk: int = 1 << 16,
     dtype: torch.dtype | None = None,
@@ -252,6 +252,8 @@ def sample_field(
             children of refined cells whose interpolated corners change sign or come within the
             threshold, then, repeatedly, every child whose corners change sign until all such
             corners are exact (instead of every node of every refined cell).
+        seed_margin: the seeds of ``narrow_final`` are the children whose smallest interpolated
+            ``|f|`` at a corner is at most ``seed_margin`` times the refinement threshold.
         min_coarse_cells: the coarsest adaptive level keeps at least this many cells per axis.
         chunk: points per forward pass.
         dtype, device: of the points fed to the field (default: :func:`field_dtype_device`).
@@ -300,8 +302,10 @@ def sample_field(
                 children = np.repeat(children, 2, axis=a)
                 sl_f = np.repeat(sl_f, 2, axis=a)
             thr_f = final_safety * sl_f * (0.5 * float(np.linalg.norm(g.spacing)))
-            cmin, cmax, amin = _corner_stats(v, g.cells)
-            cand = children & (((cmin <= 0) & (cmax > 0)) | (amin <= thr_f))
+            cmin, cmax = _corner_stats(v, g.cells)
+            # smallest |corner| of cells without a sign change (0 where the sign changes)
+            amin = np.where(cmin > 0, cmin, np.where(cmax < 0, -cmax, 0))
+            cand = children & (amin <= seed_margin * thr_f)
             del sl_f, thr_f, amin
             exact = ex
             for _ in range(64):
@@ -314,7 +318,7 @@ def sample_field(
                     break
                 v.reshape(-1)[flat] = _eval_nodes(field, g, flat, z, dtype, device, chunk)
                 exact |= need
-                cmin, cmax, _ = _corner_stats(v, g.cells)
+                cmin, cmax = _corner_stats(v, g.cells)
                 all_exact = np.ones(g.cells, dtype=bool)
                 for sl in _corner_slices(g.cells):
                     all_exact &= exact[sl]
