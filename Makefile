@@ -9,7 +9,7 @@ venv:
 	@bash scripts/setup-venv.sh
 
 run: venv
-	$(GINN) train obstacle --preset demo --out runs/quickstart-obstacle
+	$(GINN) train obstacle --preset demo
 
 test: venv
 	$(PYTEST) -m "not slow"
