@@ -68,3 +68,32 @@ def test_phase_randomised_keeps_mean_variance_and_spectrum():
     assert G.std() == pytest.approx(F.std(), rel=1e-12)
     assert np.allclose(np.abs(np.fft.fft2(G)), np.abs(np.fft.fft2(F)), atol=1e-9)
     assert np.abs(G - F).max() > 0.01
+
+
+def _solver_pattern(n, seed, T):
+    """A Turing pattern computed by the solver itself from a smooth random start (mean (0.6, 0.15))."""
+    rng = np.random.default_rng(seed)
+    f = np.fft.fftfreq(n, 1.0 / n)
+    K = np.sqrt(f[:, None] ** 2 + f[None, :] ** 2)
+
+    def smooth():
+        F = np.fft.ifft2(np.fft.fft2(rng.standard_normal((n, n))) * np.exp(-((K / 6) ** 2))).real
+        return 0.1 * F / F.std()
+
+    s = GrayScottSolver(n, P, dt=1.0)
+    return s.integrate(0.6 + smooth(), 0.15 + smooth(), T)
+
+
+@pytest.mark.slow
+def test_verification_passes_true_stationary_patterns():
+    """The four checks pass on patterns the solver has converged to (so they can be met), and the
+    phase-randomised control changes far more."""
+    from ginn.pinn.verify import verify_fields
+
+    n = 64
+    W = np.stack([np.stack(_solver_pattern(n, seed, 6000.0)) for seed in (0, 1)])
+    out = verify_fields(W, P)
+    for lat in out["latents"]:
+        assert lat["rel"] < 0.1 and lat["change"] < 0.1 and lat["std_v"] > 0.05
+        assert lat["control_change"] > 5 * lat["change"]
+    assert out["latents_passing"] == 2
