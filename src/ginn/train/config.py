@@ -106,7 +106,7 @@ class ConnectednessConfig(_Strict):
     """Connectedness loss (Appendix C); see docs/connectedness.md."""
 
     method: Literal["surface-network", "persistent-homology"] = "surface-network"
-    every: int = Field(1, ge=1, description="rebuild the surface network every K steps (warm updates between)")
+    every: int = Field(10, ge=1, description="full surface-network rebuild at least every K steps (warm updates between)")
     grid: int = Field(16, ge=2, description="seed grid resolution per axis (surface network) or PH grid resolution")
     restrict_to_design_region: bool = True
     eps: float = Field(1e-2, gt=0, description="epsilon in p_k += 1/(d + eps)")
