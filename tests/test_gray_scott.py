@@ -211,3 +211,12 @@ def test_flow_gradient_is_the_pde_time_derivative():
         else:  # d/dc of mean(R^2) for u -> u + c: 2 mean(R_u (-v^2 - alpha) + R_v v^2)
             expect = 2 * (Ru * (-v * v - p.alpha) + Rv * v * v).mean()
             assert fu.dummy.grad.item() == pytest.approx(expect.item(), rel=1e-10)
+
+
+def test_interpolation_latents_run_between_the_first_two_codes():
+    from ginn.pinn.plots import interpolation_latents
+
+    Z = torch.tensor([[-1.0, 0.0], [1.0, 2.0], [5.0, 5.0]], dtype=torch.float64)
+    I = interpolation_latents(Z, 5)
+    assert torch.allclose(I[0], Z[0]) and torch.allclose(I[-1], Z[1])
+    assert torch.allclose(I[2], torch.tensor([0.0, 1.0], dtype=torch.float64))

@@ -23,15 +23,16 @@ def _save_image(A: np.ndarray, path: Path, vmin: float, vmax: float) -> None:
 
 
 def interpolation_latents(Z: Tensor, steps: int) -> Tensor:
-    """``steps`` latents on the segment from the first to the last trained latent, ``(steps, k)``."""
+    """``steps`` latents on the segment from the first to the second trained latent, ``(steps, k)``
+    (neighbours for evenly spaced 1D codes: the strip shows how one trained pattern morphs into the next)."""
     t = torch.linspace(0.0, 1.0, steps, dtype=Z.dtype, device=Z.device)[:, None]
-    return (1 - t) * Z[0] + t * Z[-1]
+    return (1 - t) * Z[0] + t * Z[1]
 
 
 def write_patterns(model: nn.Module, Z: Tensor, run_dir: Path, resolution: int = 256, n_interp: int = 8) -> list[Path]:
     """Write ``patterns/u_{s:02d}.npy``, ``v_{s:02d}.npy`` (``(resolution, resolution)``, ``[i, j]`` at
     ``x = (i, j) / resolution``), ``patterns/v_{s:02d}.png`` for every latent, ``patterns_v.png`` (all
-    latents side by side) and ``interpolation_v.png`` (a strip along the latent segment).
+    latents side by side) and ``interpolation_v.png`` (a strip along the segment from the first to the second latent).
 
     Returns:
         the written paths.
