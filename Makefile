@@ -12,7 +12,7 @@ run: venv
 	$(GINN) train obstacle --preset demo
 
 test: venv
-	$(PYTEST) -m "not slow"
+	$(PYTEST) -q -m "not slow"
 
 test-slow: venv
 	$(PYTEST) -m slow -q -p no:cacheprovider
