@@ -12,7 +12,8 @@ GINN=${GINN:-.venv/bin/ginn}
 T1="--seed 0 --set training.threads=1 --quiet"
 # Table 2's envelope / normal / eikonal weights on the cpu model (the first cpu preset)
 T2="--set losses.design_region.weight=0.1 --set losses.normal.weight=1e-6 --set losses.eikonal.weight=1e-9
-    --set training.iterations=1500 --set training.lr_decay_every=500"
+    --set training.iterations=1500 --set training.lr_decay_every=500 --set sampling.projection_steps=8"
+# (sampling.projection_steps: the config default was 8 when these two ran, 2 since)
 mkdir -p runs
 
 # 1. cpu model with the Table 2 weights, with and without connectedness (Table 4 col. 4 at cpu scale)
