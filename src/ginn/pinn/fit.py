@@ -43,7 +43,7 @@ def fit(task: Task, iterations: int | None = None, log: Callable[[int, dict], No
         opt.step()
         sched.step()
         if step % log_every == 0 or step == n_it - 1:
-            rec = {"step": step, "time": time.perf_counter() - t0, "total": float(total)}
+            rec = {"step": step, "time": time.perf_counter() - t0, "total": float(total.detach())}
             rec.update({k: float(v) for k, v in losses.items()})
             history.append(rec)
             if log is not None:
