@@ -261,7 +261,7 @@ def plot_mirror(model: nn.Module, params: dict[str, Any] | MirrorParams | None, 
     ax.set_aspect("equal")
     ax.set_xlim(p.x_min - 0.1, p.x_max + 0.1)
     ax.set_ylim(min(float(h.min()), 0.0) - 0.1, top)
-    ax.legend(loc="upper left", fontsize=8)
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=3, fontsize=8, frameon=False)
     ax.set_title("parabolic mirror")
     fig.tight_layout()
     path = Path(path)
