@@ -220,3 +220,19 @@ def test_interpolation_latents_run_between_the_first_two_codes():
     I = interpolation_latents(Z, 5)
     assert torch.allclose(I[0], Z[0]) and torch.allclose(I[-1], Z[1])
     assert torch.allclose(I[2], torch.tensor([0.0, 1.0], dtype=torch.float64))
+
+
+def test_fourier_model_and_bad_model_kind():
+    cfg = build_config({"problem": "gray-scott", "model": {"kind": "fourier", "hidden": [16, 8], "sigma": 3.0, "n_features": 8},
+                        "latents": {"n_shapes": 2, "dim": 1}, "params": {"grid": 16}})
+    task = GrayScottTask(cfg, torch.device("cpu"), torch.float32)
+    model = task.build_model()
+    x = torch.rand(5, 2)
+    z = torch.zeros(5, 1)
+    # periodic: shifting x by whole periods changes nothing
+    assert torch.allclose(model(x, z), model(x + torch.tensor([1.0, -2.0]), z), atol=1e-5)
+    t = _terms(task, model)
+    assert all(torch.isfinite(v) for v in t.values())
+    bad = build_config({"problem": "gray-scott", "model": {"kind": "resmlp"}})
+    with pytest.raises(ConfigError, match="model.kind"):
+        GrayScottTask(bad, torch.device("cpu"), torch.float32).build_model()
