@@ -72,6 +72,10 @@ def export_mesh(boundary: Boundary, path: str | Path, file_format: str | None = 
         path = path.with_name(path.name + "." + fmt)
     path.parent.mkdir(parents=True, exist_ok=True)
     mesh = trimesh.Trimesh(boundary.vertices, boundary.elements, process=False)
+    # marching cubes emits zero-area triangles where the surface passes through grid nodes; they
+    # leave edges shared by 4 or 6 faces, so drop them to keep the exported mesh watertight
+    mesh.update_faces(mesh.nondegenerate_faces())
+    mesh.remove_unreferenced_vertices()
     mesh.export(path, file_type=fmt)
     return path
 

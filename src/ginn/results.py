@@ -26,4 +26,8 @@ def write_shape_results(model: nn.Module, Z: Tensor | None, problem: Problem, cf
     res = result_resolution(cfg, problem.dim)
     paths = export_shapes(model, Z, problem.domain, run_dir / "shapes", res, mesh_format="stl")
     paths += plot_run(model, Z, problem, run_dir / "figures", metrics_jsonl=run_dir / "metrics.jsonl", resolution=res)
+    if problem.name == "plateau":
+        from .plateau import write_plateau_results
+
+        paths += write_plateau_results(model, problem, run_dir, resolution=res)
     return paths

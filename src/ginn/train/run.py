@@ -65,7 +65,7 @@ def environment(cfg: RunConfig) -> dict:
         "platform": platform.platform(),
         "device": cfg.device,
         "seed": cfg.seed,
-        "threads": torch.get_num_threads(),
+        "threads": cfg.training.threads or torch.get_num_threads(),
         "command": sys.argv,
         "started": _dt.datetime.now().isoformat(timespec="seconds"),
     }
