@@ -136,10 +136,17 @@ class ShapeTask(Task):
             out["obstacle"] = torch.cat([o.reshape(S, -1, d) for o in obs], dim=1)
         if p.interfaces and ({"interface", "normal"} & active):
             xi, ni = sampling.sample_interfaces(p.interfaces, S * s.n_interface, gen, **kw)
-            out["interface"], out["normals"] = xi.reshape(S, -1, d), ni.reshape(S, -1, d)
+            # the samplers return points grouped interface by interface: shuffle before splitting
+            # them among the shapes, or each shape would see only some of the interfaces
+            perm = self._perm(xi.shape[0], gen)
+            out["interface"], out["normals"] = xi[perm].reshape(S, -1, d), ni[perm].reshape(S, -1, d)
         if s.n_band > 0 and p.interfaces and p.interface_band > 0:
-            out["band"] = sampling.sample_band(p.interfaces, S * s.n_band, p.interface_band, gen, box=p.domain, **kw).reshape(S, -1, d)
+            xb = sampling.sample_band(p.interfaces, S * s.n_band, p.interface_band, gen, box=p.domain, **kw)
+            out["band"] = xb[self._perm(xb.shape[0], gen)].reshape(S, -1, d)
         return out
+
+    def _perm(self, n: int, gen: torch.Generator) -> Tensor:
+        return torch.randperm(n, generator=gen, device=gen.device).to(self.device)
 
     # --- losses ------------------------------------------------------------------------------
 
