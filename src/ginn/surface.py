@@ -365,41 +365,16 @@ def _closest_on_segments(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndar
 
 
 def _closest_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
-    """Closest points on triangles ``abc`` to points ``p`` (all ``(..., 3)``), by Voronoi regions."""
+    """Closest points on triangles ``abc`` to points ``p`` (all broadcastable ``(..., 3)``).
 
-    def dot(u, v):
-        return np.einsum("...i,...i->...", u, v)
+    Delegates to :func:`ginn.geometry.mesh.closest_points_on_triangles` (rowwise, ``(n, 3)``).
+    """
+    from .geometry.mesh import closest_points_on_triangles
 
-    ab, ac, ap = b - a, c - a, p - a
-    d1, d2 = dot(ab, ap), dot(ac, ap)
-    bp = p - b
-    d3, d4 = dot(ab, bp), dot(ac, bp)
-    cp = p - c
-    d5, d6 = dot(ab, cp), dot(ac, cp)
-    va = d3 * d6 - d5 * d4
-    vb = d5 * d2 - d1 * d6
-    vc = d1 * d4 - d3 * d2
-    denom = va + vb + vc
-    denom = np.where(np.abs(denom) < 1e-300, 1e-300, denom)
-    v = vb / denom
-    w = vc / denom
-    out = a + v[..., None] * ab + w[..., None] * ac  # interior
-    # edges
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t_ab = np.clip(d1 / (d1 - d3), 0, 1)
-        t_ac = np.clip(d2 / (d2 - d6), 0, 1)
-        t_bc = np.clip((d4 - d3) / ((d4 - d3) + (d5 - d6)), 0, 1)
-    on_ab = (vc <= 0) & (d1 >= 0) & (d3 <= 0)
-    on_ac = (vb <= 0) & (d2 >= 0) & (d6 <= 0)
-    on_bc = (va <= 0) & ((d4 - d3) >= 0) & ((d5 - d6) >= 0)
-    out = np.where(on_bc[..., None], b + np.nan_to_num(t_bc)[..., None] * (c - b), out)
-    out = np.where(on_ac[..., None], a + np.nan_to_num(t_ac)[..., None] * ac, out)
-    out = np.where(on_ab[..., None], a + np.nan_to_num(t_ab)[..., None] * ab, out)
-    # vertices
-    out = np.where(((d6 >= 0) & (d5 <= d6))[..., None], c, out)
-    out = np.where(((d3 >= 0) & (d4 <= d3))[..., None], b, out)
-    out = np.where(((d1 <= 0) & (d2 <= 0))[..., None], a, out)
-    return out
+    p, a, b, c = np.broadcast_arrays(p, a, b, c)
+    shape = p.shape
+    flat = [np.ascontiguousarray(t, dtype=np.float64).reshape(-1, 3) for t in (p, a, b, c)]
+    return closest_points_on_triangles(*flat).reshape(shape)
 
 
 @dataclass
