@@ -25,3 +25,14 @@ def test_single_shape_obstacle_fits_the_interfaces():
     vals = task.loss_terms(res.model, 400, {"interface"}, g)
     assert vals["interface"].item() < 1e-3
 
+
+def test_plateau_cpu_preset_meets_the_acceptance_bounds():
+    """Issue 8: the GINN surface lies within CD2 0.02 of the discrete minimal surface and its
+    area is within 2 % of the reference (the `cpu` preset, about 25 minutes on 2 idle cores)."""
+    from ginn.plateau import evaluate_plateau
+
+    task, res = train("plateau", "cpu", {})
+    out = evaluate_plateau(res.model, task.problem)
+    assert out["cd2_to_reference"] <= 0.02
+    assert abs(out["area_relative_error"]) <= 0.02
+    assert out["mean_abs_mean_curvature"] < 0.1
