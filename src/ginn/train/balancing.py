@@ -17,7 +17,6 @@ problem's hand-tuned weights are a starting point, not a requirement.
 
 from __future__ import annotations
 
-
 from torch import Tensor
 
 from .config import BalancingConfig, LossTerm
