@@ -149,3 +149,32 @@ def test_full_hessian_helper(gen):
     expect = (torch.eye(3, dtype=D) - (x / rad[:, None])[:, :, None] * (x / rad[:, None])[:, None, :]) / rad[:, None, None]
     assert torch.allclose(H, expect, atol=1e-10)
     assert math.isclose(float(f[0]), float(rad[0] - 1), abs_tol=1e-12)
+
+
+@pytest.mark.parametrize("sel", ["subset", "duplicates", "all"])
+def test_hessian_points_split_from_the_main_pass(sel, gen):
+    """Hessian points go through the network once: f, grad f and the parameter gradients equal
+    those of separate full passes (a latent-conditioned field, float64)."""
+    torch.manual_seed(1)
+    net = torch.nn.Sequential(torch.nn.Linear(3, 16), torch.nn.Tanh(), torch.nn.Linear(16, 1)).double()
+    fld = lambda p, z: net(torch.cat([p, z], dim=-1)).squeeze(-1)  # noqa: E731
+    x = torch.randn(40, 2, dtype=D, generator=gen)
+    z = torch.randn(40, 1, dtype=D, generator=gen)
+    idx = {"subset": torch.tensor([31, 2, 17, 5]), "duplicates": torch.tensor([3, 3, 9]), "all": torch.arange(40)}[sel]
+
+    def loss(v):
+        div = fields.divergence_of_normal(v.hessian_grad, v.hessian)
+        return (v.grad.norm(dim=-1) - 1).pow(2).sum() + v.f.pow(3).sum() + div.pow(2).sum()
+
+    v = evaluate(fld, x, z, hessian_at=idx, create_graph=True)
+    g_split = torch.autograd.grad(loss(v), list(net.parameters()))
+    ref = evaluate(fld, x, z, grad=True, create_graph=True)  # no Hessian: one plain pass
+    f_h, g_h, H = fields.hessian(fld, x[idx], z[idx], create_graph=True)
+    assert torch.allclose(v.f, ref.f, atol=1e-14) and torch.allclose(v.grad, ref.grad, atol=1e-14)
+    assert torch.allclose(v.hessian, H, atol=1e-14) and torch.equal(v.hessian_index, idx)
+    ref.hessian, ref.hessian_grad = H, g_h
+    g_ref = torch.autograd.grad(loss(ref), list(net.parameters()))
+    for a, b in zip(g_split, g_ref):
+        assert torch.allclose(a, b, atol=1e-12)
+    w = evaluate(fld, x, z, grad=False, hessian_at=idx, create_graph=False)
+    assert w.grad is None and torch.allclose(w.f, ref.f.detach(), atol=1e-14)

@@ -122,35 +122,89 @@ def evaluate(
     """
     n = x.shape[0]
     idx = _as_index(hessian_at, n, x.device)
-    need_x_grad = grad or idx is not None
+    if idx is not None and 0 < idx.numel():
+        split = _split_hessian_points(idx, n)
+        if split is not None:
+            return _evaluate_split(field, x, z, grad, idx, split, create_graph)
     with torch.enable_grad():
-        xr = x.detach().requires_grad_(True) if need_x_grad else x.detach()
+        xr = x.detach().requires_grad_(True) if grad else x.detach()
         f = field(xr, z)
-        if f.dim() != 1:
-            raise ValueError(f"a field must return values of shape (n,), got {tuple(f.shape)}")
+        _check_values(f)
         out = FieldValues(x=xr, f=f)
         if grad:
             out.grad = _grad_of(f, xr, create_graph)
-        if idx is not None and idx.numel() > 0:
-            xh = x.detach()[idx].requires_grad_(True)
-            zh = None if z is None else z[idx]
-            fh = field(xh, zh)
-            gh = _grad_of(fh, xh, True)
-            out.hessian = _hessian_rows(gh, xh, create_graph)
-            out.hessian_grad = gh if create_graph else gh.detach()
+        if idx is not None:  # an empty selection (a duplicated one is not split: see below)
+            if idx.numel() > 0:
+                h = _hessian_pass(field, x.detach()[idx], None if z is None else z[idx], create_graph)
+                out.hessian, out.hessian_grad = h.hessian, h.hessian_grad
+            else:
+                d = x.shape[-1]
+                out.hessian, out.hessian_grad = x.new_zeros((0, d, d)), x.new_zeros((0, d))
             out.hessian_index = idx
-        elif idx is not None:
-            d = x.shape[-1]
-            out.hessian = x.new_zeros((0, d, d))
-            out.hessian_grad = x.new_zeros((0, d))
-            out.hessian_index = idx
-    if not create_graph:
-        out.x = out.x.detach()
-        out.f = out.f.detach()
-        if out.grad is not None:
-            out.grad = out.grad.detach()
-        if out.hessian is not None:
-            out.hessian = out.hessian.detach()
+    return _detached(out) if not create_graph else out
+
+
+def _check_values(f: Tensor) -> None:
+    if f.dim() != 1:
+        raise ValueError(f"a field must return values of shape (n,), got {tuple(f.shape)}")
+
+
+def _split_hessian_points(idx: Tensor, n: int) -> Tensor | None:
+    """Indices of the points *not* in ``idx``, or ``None`` when ``idx`` repeats a point.
+
+    With distinct indices the Hessian pass also yields ``f`` and ``grad f`` at its points, so the
+    main pass runs only on the others (no point goes through the network twice).
+    """
+    mask = torch.zeros(n, dtype=torch.bool, device=idx.device)
+    mask[idx] = True
+    if int(mask.sum()) != idx.numel():
+        return None
+    return torch.nonzero(~mask, as_tuple=False).squeeze(-1)
+
+
+def _hessian_pass(field: Field, xh: Tensor, zh: Tensor | None, create_graph: bool) -> FieldValues:
+    """``f``, ``grad f`` and the Hessian at every point of ``xh`` (one forward, ``1 + d`` reverse passes)."""
+    xh = xh.detach().requires_grad_(True)
+    fh = field(xh, zh)
+    _check_values(fh)
+    gh = _grad_of(fh, xh, True)
+    H = _hessian_rows(gh, xh, create_graph)
+    return FieldValues(x=xh, f=fh, grad=gh, hessian=H, hessian_grad=gh)
+
+
+def _evaluate_split(
+    field: Field, x: Tensor, z: Tensor | None, grad: bool, idx: Tensor, rest: Tensor, create_graph: bool
+) -> FieldValues:
+    """:func:`evaluate` with the Hessian points in their own pass and the others in the main one."""
+    with torch.enable_grad():
+        h = _hessian_pass(field, x[idx], None if z is None else z[idx], create_graph)
+        if rest.numel() == 0:
+            order, f, g = idx, h.f, h.grad
+        else:
+            xr = x.detach()[rest]
+            if grad:
+                xr.requires_grad_(True)
+            fr = field(xr, None if z is None else z[rest])
+            _check_values(fr)
+            order = torch.cat([rest, idx])
+            f = torch.cat([fr, h.f])
+            g = torch.cat([_grad_of(fr, xr, create_graph), h.grad]) if grad else None
+        if not torch.equal(order, torch.arange(order.numel(), device=order.device)):
+            inv = torch.empty_like(order)
+            inv[order] = torch.arange(order.numel(), device=order.device)
+            f = f[inv]
+            g = None if g is None else g[inv]
+    out = FieldValues(
+        x=x.detach(), f=f, grad=g if grad else None, hessian=h.hessian, hessian_index=idx, hessian_grad=h.hessian_grad
+    )
+    return _detached(out) if not create_graph else out
+
+
+def _detached(out: FieldValues) -> FieldValues:
+    for name in ("x", "f", "grad", "hessian", "hessian_grad"):
+        t = getattr(out, name)
+        if t is not None:
+            setattr(out, name, t.detach())
     return out
 
 
