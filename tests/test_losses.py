@@ -37,6 +37,10 @@ def test_design_region_disk_poking_out_known_value(gen):
     val = C.DesignRegionLoss()(disk([0.0, 0.0], r)(x)).item()
     exact = math.pi * r**4 / 24
     assert val == pytest.approx(exact, rel=0.02)
+    # the exact (power 1) penalty: integral of (r - rho) over the half disk is pi r^3 / 6
+    val1 = C.DesignRegionLoss(power=1)(disk([0.0, 0.0], r)(x)).item()
+    assert val1 == pytest.approx(math.pi * r**3 / 12, rel=0.02)
+    assert C.ObstacleLoss(power=1)(torch.tensor([0.2, -0.1, -0.3], dtype=D)).item() == pytest.approx(0.4 / 3)
 
 
 def test_eikonal_zero_for_exact_sdf(gen):

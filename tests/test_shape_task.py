@@ -1,5 +1,6 @@
 """ShapeTask sampling: every shape of a generative batch gets samples of every interface."""
 
+import pytest
 import torch
 
 from ginn.problems import load_spec
@@ -20,3 +21,21 @@ def test_every_shape_sees_every_interface():
         # normals travel with their points: outward (-1, 0) on the left, (+1, 0) on the right
         assert torch.all(n[s, left, 0] == -1) and torch.all(n[s, right, 0] == 1)
         assert torch.allclose(x[s, :, 0].abs(), torch.full((64,), 0.9))
+
+
+def test_containment_power_reaches_the_losses():
+    """``losses.containment_power = 1``: the design-region and obstacle terms of a training step
+    are the mean of |min(0, f)| over their samples (checked against the field's own values)."""
+    spec = load_spec("obstacle")
+    cfg = resolve_config(spec, "single", {"losses": {"containment_power": 1}})
+    task = make_task(spec, cfg)
+    model = task.build_model()
+    active = {"design_region", "obstacle"}
+    pts = task.sample(1, active, torch.Generator().manual_seed(3))  # what loss_terms draws with this seed
+    out = task.loss_terms(model, 0, active, torch.Generator().manual_seed(3))
+    with torch.no_grad():
+        f_out, f_obs = model(pts["outside"][0], None), model(pts["obstacle"][0], None)
+    for name, f in (("design_region", f_out), ("obstacle", f_obs)):
+        expected = f.clamp(max=0).abs().mean().item()
+        assert expected > 0  # the untrained field violates both somewhere
+        assert out[name].item() == pytest.approx(expected, rel=1e-5)

@@ -29,12 +29,19 @@ def _wmean(v: Tensor, w: Tensor | None) -> Tensor:
 
 @dataclass(frozen=True)
 class DesignRegionLoss:
-    """``mean over X \\ E of min(0, f)^2``: the shape must stay inside E. Input: f ``(n,)``."""
+    """``mean over X \\ E of |min(0, f)|^power``: the shape must stay inside E. Input: f ``(n,)``.
+
+    ``power = 2`` is the paper's quadratic penalty. Its gradient vanishes as a violation becomes
+    shallow, so a thin sliver of shape just outside E costs almost nothing at any finite weight;
+    ``power = 1`` (an exact penalty) pushes shallow violations with a constant force.
+    """
 
     name: str = "design_region"
+    power: int = 2
 
     def __call__(self, f_outside: Tensor) -> Tensor:
-        return _wmean(torch.clamp(f_outside, max=0.0).pow(2), None)
+        v = torch.clamp(f_outside, max=0.0)
+        return _wmean(v.pow(2) if self.power == 2 else -v, None)
 
 
 @dataclass(frozen=True)

@@ -78,6 +78,11 @@ class LossesConfig(_Strict):
     strain: LossTerm = LossTerm()
     connectedness: LossTerm = LossTerm()
     diversity: LossTerm = LossTerm()
+    containment_power: Literal[1, 2] = Field(
+        2,
+        description="exponent of the design-region and obstacle penalties: 2 is the paper's mean of "
+        "min(0, f)^2; 1 is the mean of |min(0, f)|, an exact penalty that keeps pushing on shallow violations",
+    )
 
 
 class SamplingConfig(_Strict):

@@ -46,8 +46,8 @@ class ShapeTask(Task):
         self._conn = None
         self._iface_cloud: Tensor | None = None
         s = cfg.sampling
-        self.design_loss = C.DesignRegionLoss()
-        self.obstacle_loss = C.ObstacleLoss()
+        self.design_loss = C.DesignRegionLoss(power=cfg.losses.containment_power)
+        self.obstacle_loss = C.ObstacleLoss(power=cfg.losses.containment_power)
         self.interface_loss = C.InterfaceLoss()
         self.normal_loss = C.NormalLoss()
         self.eikonal_loss = C.EikonalLoss()
