@@ -29,7 +29,10 @@ def test_containment_power_reaches_the_losses():
     spec = load_spec("obstacle")
     cfg = resolve_config(spec, "single", {"losses": {"containment_power": 1}})
     task = make_task(spec, cfg)
+    torch.manual_seed(0)
     model = task.build_model()
+    with torch.no_grad():  # shift the untrained field so that both constraints are violated somewhere
+        model.core[-1].bias.fill_(-0.3)
     active = {"design_region", "obstacle"}
     pts = task.sample(1, active, torch.Generator().manual_seed(3))  # what loss_terms draws with this seed
     out = task.loss_terms(model, 0, active, torch.Generator().manual_seed(3))
@@ -39,3 +42,39 @@ def test_containment_power_reaches_the_losses():
         expected = f.clamp(max=0).abs().mean().item()
         assert expected > 0  # the untrained field violates both somewhere
         assert out[name].item() == pytest.approx(expected, rel=1e-5)
+
+
+def test_containment_slope_is_exact_for_sdfs_and_catches_flat_fields():
+    """``losses.containment_slope = 1``: an exact SDF of a shape inside E (a disk of radius 0.2
+    centred at (0.5, 0)) costs nothing, while the nearly flat field ``f = 1e-3`` (which the
+    paper's loss accepts: f > 0 outside E) is penalised by the mean of (d_E(x) - 1e-3)^2 over the
+    samples outside E; inside the obstacle the floor is the depth into it."""
+    spec = load_spec("obstacle")
+    cfg = resolve_config(spec, "single", {"losses": {"containment_slope": 1.0}})
+    task = make_task(spec, cfg)
+    active = {"design_region", "obstacle"}
+
+    class Field(torch.nn.Module):
+        def __init__(self, fn):
+            super().__init__()
+            self.fn = fn
+
+        def forward(self, x, z=None):
+            return self.fn(x)
+
+    c = torch.tensor([0.5, 0.0])
+    sdf = Field(lambda x: (x - c).norm(dim=-1) - 0.2)
+    out = task.loss_terms(sdf, 0, active, torch.Generator().manual_seed(5))
+    assert out["design_region"].item() == 0.0 and out["obstacle"].item() == 0.0
+
+    flat = Field(lambda x: 0.0 * x[:, 0] + 1e-3)
+    out = task.loss_terms(flat, 0, active, torch.Generator().manual_seed(5))
+    pts = task.sample(1, active, torch.Generator().manual_seed(5))
+    xo = pts["outside"][0]
+    # X \ E is the frame around the rectangle and the obstacle's disk
+    d_frame = torch.sqrt((xo[:, 0].abs() - 0.9).clamp_min(0) ** 2 + (xo[:, 1].abs() - 0.4).clamp_min(0) ** 2)
+    d_out = torch.maximum(d_frame, 0.1 - xo.norm(dim=-1))
+    expected = (1e-3 - d_out).clamp(max=0).pow(2).mean().item()
+    assert expected > 1e-4 and out["design_region"].item() == pytest.approx(expected, rel=1e-5)
+    d_obs = (0.1 - pts["obstacle"][0].norm(dim=-1)).clamp_min(0)  # depth into the disk
+    assert out["obstacle"].item() == pytest.approx((1e-3 - d_obs).clamp(max=0).pow(2).mean().item(), rel=1e-5)

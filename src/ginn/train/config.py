@@ -83,6 +83,12 @@ class LossesConfig(_Strict):
         description="exponent of the design-region and obstacle penalties: 2 is the paper's mean of "
         "min(0, f)^2; 1 is the mean of |min(0, f)|, an exact penalty that keeps pushing on shallow violations",
     )
+    containment_slope: float = Field(
+        0.0,
+        ge=0,
+        description="penalise f below slope * (distance into X minus E, or into an obstacle) instead of below 0; "
+        "0 is the paper's loss, 1 is exact for a signed distance field of any shape inside E",
+    )
 
 
 class SamplingConfig(_Strict):

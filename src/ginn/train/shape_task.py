@@ -175,9 +175,11 @@ class ShapeTask(Task):
             ge = part_g["domain"] if "band" not in part_g else torch.cat([part_g["domain"], part_g["band"]], dim=1)
             out["eikonal"] = self.eikonal_loss(ge.reshape(-1, self.d))
         if "design_region" in active and "outside" in part_f:
-            out["design_region"] = self.design_loss(part_f["outside"].reshape(-1))
+            fo = part_f["outside"].reshape(-1)
+            out["design_region"] = self.design_loss(fo - self._containment_floor(pts["outside"], self.problem.design_region, 1.0))
         if "obstacle" in active and "obstacle" in part_f:
-            out["obstacle"] = self.obstacle_loss(part_f["obstacle"].reshape(-1))
+            fo = part_f["obstacle"].reshape(-1)
+            out["obstacle"] = self.obstacle_loss(fo - self._containment_floor(pts["obstacle"], self.problem.obstacles, -1.0))
         if "interface" in active:
             fi = part_f["interface"].reshape(-1)
             if self.corners is not None and self.cfg.sampling.interface_corner_weight > 1:
@@ -197,6 +199,20 @@ class ShapeTask(Task):
         if "connectedness" in active:
             out["connectedness"] = self.connectedness_loss()(model, Z)
         return out
+
+    def _containment_floor(self, x: Tensor, regions, sign: float) -> Tensor | float:
+        """``losses.containment_slope`` times the distance of each sample ``x (S, n, d)`` into the
+        forbidden set: outside E (``sign = 1``: the design region's SDF) or into an obstacle
+        (``sign = -1``: minus the obstacle's SDF, the largest over the obstacles). A signed distance
+        field of any shape inside E is at least this distance there, so the floor is exact for
+        ``slope = 1``; returns 0 (the paper's loss) when the slope is 0."""
+        slope = self.cfg.losses.containment_slope
+        if slope == 0:
+            return 0.0
+        flat = x.reshape(-1, self.d)
+        regions = regions if isinstance(regions, (list, tuple)) else [regions]
+        depth = torch.stack([sign * r.sdf(flat) for r in regions]).amax(dim=0)
+        return slope * depth.clamp_min(0.0).detach()
 
     def _corner_values(self, model: nn.Module, Z: Tensor | None) -> Tensor:
         c = self.corners
