@@ -133,7 +133,7 @@ def evaluate(
         out = FieldValues(x=xr, f=f)
         if grad:
             out.grad = _grad_of(f, xr, create_graph)
-        if idx is not None:  # an empty selection (a duplicated one is not split: see below)
+        if idx is not None:  # here: an empty selection, or repeated indices (not split)
             if idx.numel() > 0:
                 h = _hessian_pass(field, x.detach()[idx], None if z is None else z[idx], create_graph)
                 out.hessian, out.hessian_grad = h.hessian, h.hessian_grad
