@@ -4,7 +4,10 @@ Work per step (SIREN 3 -> 4x256 -> 1, float32): value and gradient at N points, 
 of them, a loss of all three (eikonal + value^2 + squared divergence of the normal), backward to
 the weights, one Adam step.
 
-* engine: ginn.fields.evaluate (eager autograd; Hessian by a separate pass on the M points).
+* engine: ginn.fields.evaluate: value and gradient at the N - M other points by the SIREN's
+  hand-written pass (ginn.models.siren_grad, in cache-sized blocks), f, grad f and the Hessian at
+  the M points by eager autograd (one forward, 1 + d reverse passes).
+* engine without the fast path (fast=False): autograd at every point (printed for comparison).
 * baseline: torch.func as the authors' code does: vmap(jacrev(f)) for gradients at N points and
   vmap(jacrev(jacrev(f))) for Hessians at M points (values from a plain forward pass).
 
@@ -39,10 +42,14 @@ def matmul_peak(n: int = 2048, repeats: int = 5) -> float:
     return 2 * n**3 / best / 1e9
 
 
-def engine_loss(model, x, hidx):
-    v = fields.evaluate(model, x, None, grad=True, hessian_at=hidx, create_graph=True)
+def engine_loss(model, x, hidx, fast=True):
+    v = fields.evaluate(model, x, None, grad=True, hessian_at=hidx, create_graph=True, fast=fast)
     div = fields.divergence_of_normal(v.hessian_grad, v.hessian)
     return (v.grad.norm(dim=-1) - 1).pow(2).mean() + v.f.pow(2).mean() + div.pow(2).mean()
+
+
+def engine_autograd_loss(model, x, hidx):
+    return engine_loss(model, x, hidx, fast=False)
 
 
 def baseline_loss(model, x, hidx):
@@ -60,25 +67,28 @@ def baseline_loss(model, x, hidx):
     return (g.norm(dim=-1) - 1).pow(2).mean() + f.pow(2).mean() + div.pow(2).mean()
 
 
-def time_steps(loss_fn, model, x, hidx, repeats):
+def time_steps(loss_fns, model, x, hidx, repeats):
+    """Median seconds per optimisation step of each loss function; the functions take turns
+    step by step, so that a change in the machine's speed during the run hits all alike."""
     opt = torch.optim.Adam(model.parameters(), lr=1e-4)
-    times = []
+    times = [[] for _ in loss_fns]
     for i in range(repeats + 1):
-        t = time.perf_counter()
-        opt.zero_grad()
-        loss = loss_fn(model, x, hidx)
-        loss.backward()
-        opt.step()
-        if i > 0:  # first step warms up
-            times.append(time.perf_counter() - t)
-    return statistics.median(times), float(loss.detach())
+        for k, loss_fn in enumerate(loss_fns):
+            t = time.perf_counter()
+            opt.zero_grad()
+            loss = loss_fn(model, x, hidx)
+            loss.backward()
+            opt.step()
+            if i > 0:  # the first round warms up
+                times[k].append(time.perf_counter() - t)
+    return [statistics.median(ts) for ts in times]
 
 
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--points", type=int, default=20000)
     ap.add_argument("--hessian-points", type=int, default=2000)
-    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--repeats", type=int, default=7)
     ap.add_argument("--threads", type=int, default=0)
     a = ap.parse_args()
     if a.threads:
@@ -100,11 +110,11 @@ def main() -> None:
     flops = sum(e.flops for e in prof.key_averages() if e.flops)
     model.zero_grad()
 
-    t_engine, _ = time_steps(engine_loss, model, x, hidx, a.repeats)
-    t_base, _ = time_steps(baseline_loss, model, x, hidx, a.repeats)
+    t_engine, t_autograd, t_base = time_steps([engine_loss, engine_autograd_loss, baseline_loss], model, x, hidx, a.repeats)
     gflops = flops / t_engine / 1e9
     print(f"threads: {torch.get_num_threads()}  matmul peak: {peak:.1f} GFLOP/s")
     print(f"engine   : {t_engine:.3f} s/step  ({flops / 1e9:.1f} GFLOP counted, {gflops:.1f} GFLOP/s)")
+    print(f"engine without the SIREN fast path (autograd only): {t_autograd:.3f} s/step")
     print(f"torch.func baseline: {t_base:.3f} s/step")
     print(f"speedup engine vs torch.func: {t_base / t_engine:.2f}x; engine at {gflops:.1f} GFLOP/s = {100 * gflops / peak:.0f}% of measured matmul peak")
 

@@ -104,6 +104,7 @@ def evaluate(
     grad: bool = True,
     hessian_at: Tensor | slice | bool | None = None,
     create_graph: bool = True,
+    fast: bool = True,
 ) -> FieldValues:
     """Value, gradient and (optionally, at a subset) Hessian of ``field`` at ``x``.
 
@@ -116,6 +117,9 @@ def evaluate(
             boolean mask ``(n,)`` selecting the points that need a Hessian.
         create_graph: keep results differentiable w.r.t. the parameters (training); when False
             everything returned is detached.
+        fast: let a field with a ``value_and_grad(x, z)`` method (a SIREN) compute ``f`` and
+            ``grad f`` at the non-Hessian points itself (same numbers, hand-written backward);
+            False forces autograd everywhere (for comparisons).
 
     Returns:
         :class:`FieldValues`.
@@ -125,7 +129,15 @@ def evaluate(
     if idx is not None and 0 < idx.numel():
         split = _split_hessian_points(idx, n)
         if split is not None:
-            return _evaluate_split(field, x, z, grad, idx, split, create_graph)
+            return _evaluate_split(field, x, z, grad, idx, split, create_graph, fast)
+    if grad and (idx is None or idx.numel() == 0):
+        vg = _fast_value_grad(field, x, z, create_graph) if fast else None
+        if vg is not None:
+            out = FieldValues(x=x.detach(), f=vg[0], grad=vg[1])
+            if idx is not None:
+                d = x.shape[-1]
+                out.hessian, out.hessian_grad, out.hessian_index = x.new_zeros((0, d, d)), x.new_zeros((0, d)), idx
+            return out
     with torch.enable_grad():
         xr = x.detach().requires_grad_(True) if grad else x.detach()
         f = field(xr, z)
@@ -142,6 +154,19 @@ def evaluate(
                 out.hessian, out.hessian_grad = x.new_zeros((0, d, d)), x.new_zeros((0, d))
             out.hessian_index = idx
     return _detached(out) if not create_graph else out
+
+
+def _fast_value_grad(field: Field, x: Tensor, z: Tensor | None, create_graph: bool) -> tuple[Tensor, Tensor] | None:
+    """``(f, grad f)`` from the field's own ``value_and_grad``, or ``None`` where it has none."""
+    method = getattr(field, "value_and_grad", None)
+    if method is None:
+        return None
+    x = x.detach()
+    if create_graph:
+        with torch.enable_grad():
+            return method(x, z)
+    with torch.no_grad():
+        return method(x, z)
 
 
 def _check_values(f: Tensor) -> None:
@@ -173,13 +198,17 @@ def _hessian_pass(field: Field, xh: Tensor, zh: Tensor | None, create_graph: boo
 
 
 def _evaluate_split(
-    field: Field, x: Tensor, z: Tensor | None, grad: bool, idx: Tensor, rest: Tensor, create_graph: bool
+    field: Field, x: Tensor, z: Tensor | None, grad: bool, idx: Tensor, rest: Tensor, create_graph: bool, fast: bool
 ) -> FieldValues:
     """:func:`evaluate` with the Hessian points in their own pass and the others in the main one."""
     with torch.enable_grad():
         h = _hessian_pass(field, x[idx], None if z is None else z[idx], create_graph)
         if rest.numel() == 0:
             order, f, g = idx, h.f, h.grad
+        elif grad and fast and (vg := _fast_value_grad(field, x[rest], None if z is None else z[rest], create_graph)) is not None:
+            order = torch.cat([rest, idx])
+            f = torch.cat([vg[0], h.f])
+            g = torch.cat([vg[1], h.grad])
         else:
             xr = x.detach()[rest]
             if grad:
@@ -317,6 +346,22 @@ def as_field(fn: Callable[[Tensor], Tensor]) -> Field:
         return fn(x)
 
     return field
+
+
+class Shifted:
+    """The field ``f + c`` (a constant ``c``): same gradients and Hessians, a shifted level set.
+    Keeps the wrapped field's fast path (``value_and_grad``)."""
+
+    def __init__(self, field: Field, c: float):
+        self.field, self.c = field, float(c)
+
+    def __call__(self, x: Tensor, z: Tensor | None = None) -> Tensor:
+        return self.field(x, z) + self.c
+
+    def value_and_grad(self, x: Tensor, z: Tensor | None = None) -> tuple[Tensor, Tensor] | None:
+        method = getattr(self.field, "value_and_grad", None)
+        vg = None if method is None else method(x, z)
+        return None if vg is None else (vg[0] + self.c, vg[1])
 
 
 def broadcast_latents(x: Tensor, z: Tensor) -> tuple[Tensor, Tensor]:

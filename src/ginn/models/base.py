@@ -117,6 +117,19 @@ class NeuralField(nn.Module):
         Returns:
             ``(n,)`` when ``out_dim == 1``, else ``(n, out_dim)``.
         """
+        self._check_inputs(x, z)
+        h = self.conditioning(self.encoding(x), z if self.latent_dim > 0 else None)
+        out = self.core(h)
+        return out.squeeze(-1) if self.out_dim == 1 else out
+
+    def value_and_grad(self, x: Tensor, z: Tensor | None = None) -> tuple[Tensor, Tensor] | None:
+        """Optional fast path of :func:`ginn.fields.evaluate`: ``f (n,)`` and ``grad_x f (n, d)``
+        at once, differentiable (once) w.r.t. the parameters, or ``None`` where this model has
+        none (the engine then uses autograd). Subclasses may override; results must equal the
+        autograd ones."""
+        return None
+
+    def _check_inputs(self, x: Tensor, z: Tensor | None) -> None:
         if x.shape[-1] != self.in_dim:
             raise ValueError(f"expected points with {self.in_dim} coordinates, got shape {tuple(x.shape)}")
         if self.latent_dim > 0:
@@ -127,6 +140,3 @@ class NeuralField(nn.Module):
                 )
             if z.shape[0] != x.shape[0]:
                 raise ValueError(f"x and z must have the same number of rows, got {x.shape[0]} and {z.shape[0]}")
-        h = self.conditioning(self.encoding(x), z if self.latent_dim > 0 else None)
-        out = self.core(h)
-        return out.squeeze(-1) if self.out_dim == 1 else out

@@ -26,7 +26,8 @@ from collections.abc import Sequence
 import torch
 from torch import Tensor, nn
 
-from .base import Conditioning, NeuralField
+from .base import ConcatConditioning, Conditioning, IdentityEncoding, NeuralField
+from .siren_grad import siren_value_and_grad
 
 
 class _SinCos(torch.autograd.Function):
@@ -129,6 +130,29 @@ class Siren(NeuralField):
             last.bias.uniform_(-bound, bound)
         layers.append(last)
         self.core = nn.Sequential(*layers)
+
+    def value_and_grad(self, x: Tensor, z: Tensor | None = None) -> tuple[Tensor, Tensor] | None:
+        """``f (n,)`` and ``grad_x f (n, d)`` by :func:`ginn.models.siren_grad.siren_value_and_grad`
+        (a hand-written backward); ``None`` (use autograd) with an encoding, a conditioning other
+        than concatenation, or several output channels."""
+        if not (
+            isinstance(self.encoding, IdentityEncoding)
+            and type(self.conditioning) is ConcatConditioning
+            and self.out_dim == 1
+        ):
+            return None
+        self._check_inputs(x, z)
+        h0 = self.conditioning(x, z if self.latent_dim > 0 else None)
+        layers = list(self.core)
+        weights, biases = [], []
+        for layer in layers[:-1]:
+            W, b = layer.linear.weight, layer.linear.bias
+            if layer.omega != 1.0:
+                W, b = layer.omega * W, layer.omega * b
+            weights.append(W)
+            biases.append(b)
+        last = layers[-1]
+        return siren_value_and_grad(h0, self.in_dim, weights, biases, last.weight, last.bias)
 
     def preactivations(self, x: Tensor, z: Tensor | None = None) -> list[Tensor]:
         """Pre-activations of every sine layer, each ``(n, width)`` (for checking the init)."""
