@@ -506,3 +506,27 @@ def test_losses_on_cuda(method):
     expected = np.array([[0.0, 0.0], [0.0, 0.3]])
     tol = 1e-3 if method == "surface-network" else 2.0 / 64
     assert np.abs(np.sort(x, axis=0) - expected).max() <= tol
+
+
+def test_margin_sees_a_thin_neck_as_a_gap():
+    """Two disks of radius 0.25 whose smooth union has a thin neck (saddle value about -0.02):
+    the paper's loss ({f <= 0}) sees one component and costs nothing; with a margin of 0.05 (the
+    field shifted by +0.05, as ``connectedness.margin`` does) the neck is a gap: two components,
+    all weight on the neck's saddle, loss = f(saddle) + 0.05 and d loss / d shift = 1."""
+    from ginn.fields import Shifted
+
+    shift = torch.nn.Parameter(torch.zeros((), dtype=DT))
+    f = blobs([[-0.27, 0.0], [0.27, 0.0]], 0.25, shift=shift)
+    saddle = torch.zeros(1, 2, dtype=DT)
+    f0 = float(f(saddle)[0])
+    assert -0.05 < f0 < 0  # a neck thinner than the margin
+    plain = ConnectednessLoss(BOX2, None, ConnectednessConfig(), dtype=DT, options=TIGHT)
+    assert plain(f, None).item() == 0.0 and plain.last_info["n_components"] == [1]
+    margin = ConnectednessLoss(BOX2, None, ConnectednessConfig(), dtype=DT, options=TIGHT)
+    loss = margin(Shifted(f, 0.05), None)
+    assert margin.last_info["n_components"] == [2]
+    x, _, p = margin.penalised_points()
+    np.testing.assert_allclose(x.numpy(), [[0.0, 0.0]], atol=1e-6)
+    assert loss.item() == pytest.approx(f0 + 0.05, abs=1e-10)
+    loss.backward()
+    assert float(shift.grad) == pytest.approx(1.0)

@@ -121,6 +121,8 @@ class ConnectednessConfig(_Strict):
     grid: int = Field(16, ge=2, description="seed grid resolution per axis (surface network) or PH grid resolution")
     restrict_to_design_region: bool = True
     eps: float = Field(1e-2, gt=0, description="epsilon in p_k += 1/(d + eps)")
+    margin: float = Field(0.0, ge=0, description="the loss sees the shape {f <= -margin}: connections thinner than "
+                          "about 2 margin count as gaps and are pushed open (0: the paper's {f <= 0})")
 
 
 class BalancingConfig(_Strict):

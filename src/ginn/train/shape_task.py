@@ -197,7 +197,9 @@ class ShapeTask(Task):
             xb, mask = self.boundary_points(model, Z, pts["domain"], part_f["domain"], part_g["domain"])
             out.update(self._boundary_losses(model, Z, xb, mask, active))
         if "connectedness" in active:
-            out["connectedness"] = self.connectedness_loss()(model, Z)
+            margin = self.cfg.connectedness.margin
+            field = model if margin == 0 else fields.Shifted(model, margin)
+            out["connectedness"] = self.connectedness_loss()(field, Z)
         return out
 
     def _containment_floor(self, x: Tensor, regions, sign: float) -> Tensor | float:
