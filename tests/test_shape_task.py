@@ -78,3 +78,32 @@ def test_containment_slope_is_exact_for_sdfs_and_catches_flat_fields():
     assert expected > 1e-4 and out["design_region"].item() == pytest.approx(expected, rel=1e-5)
     d_obs = (0.1 - pts["obstacle"][0].norm(dim=-1)).clamp_min(0)  # depth into the disk
     assert out["obstacle"].item() == pytest.approx((1e-3 - d_obs).clamp(max=0).pow(2).mean().item(), rel=1e-5)
+
+
+def test_diversity_interface_clearance_drops_points_near_interfaces():
+    """``diversity.interface_clearance``: boundary points within the clearance of an interface
+    leave the shape distance. Distances to the obstacle's interfaces (x = +-0.9, |y| <= 0.4) are
+    exact here, and with a clearance larger than the domain no point is left, so the term vanishes."""
+    spec = load_spec("obstacle")
+    cfg = resolve_config(spec, "demo", {})
+    task = make_task(spec, cfg)
+    pts = torch.tensor([[-0.85, 0.0], [-0.75, 0.1], [0.89, 0.39], [0.0, 0.0], [0.9, 0.45]])
+    # distances: 0.05, 0.15, 0.01, 0.9, 0.05 (to the end point (0.9, 0.4))
+    assert task._away_from_interfaces(pts, 0.1).tolist() == [False, True, False, True, False]
+    assert task._away_from_interfaces(pts, 0.0).all()
+
+    class Disks(torch.nn.Module):  # shape z: the disk of radius 0.3 centred at (0.3 z, 0), as an SDF
+        def forward(self, x, z):
+            return (x - torch.cat([0.3 * z, torch.zeros_like(z)], dim=-1)).norm(dim=-1) - 0.3
+
+    model, active = Disks(), {"diversity"}
+
+    def term(clearance):
+        t = make_task(spec, resolve_config(spec, "demo", {"diversity": {"interface_clearance": clearance}}))
+        return t.loss_terms(model, 0, active, torch.Generator().manual_seed(1))["diversity"].item()
+
+    full, near, none_left = term(0.0), term(0.25), term(10.0)
+    assert full < -0.1  # four distinct disks
+    assert near == full  # every disk stays at least 0.3 away from the interfaces
+    # no sample left: every distance is its floor sqrt(1e-12), delta = (4 * (1e-6)^(1/2))^2
+    assert none_left == pytest.approx(-1.6e-5, rel=1e-5)

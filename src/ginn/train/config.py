@@ -111,6 +111,8 @@ class DiversityConfig(_Strict):
 
     aggregation: Literal["min", "sum"] = "min"
     p: float = Field(0.5, gt=0, description="exponent of the aggregation (paper: 0.5 with min)")
+    interface_clearance: float = Field(0.0, ge=0, description="leave boundary points this close to an interface out of "
+                                       "the shape distance (every shape must share the interfaces; 0: the paper's full boundary)")
 
 
 class ConnectednessConfig(_Strict):

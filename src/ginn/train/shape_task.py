@@ -261,10 +261,13 @@ class ShapeTask(Task):
             if "mean_curvature" in active:
                 out["mean_curvature"] = self.curv_loss(gh, hh)
             if "strain" in active:
-                keep = self._away_from_interfaces(Xf[v.hessian_index])
+                keep = self._away_from_interfaces(Xf[v.hessian_index], self.cfg.sampling.strain_interface_clearance)
                 out["strain"] = self.strain_loss(gh[keep], hh[keep])
         if "diversity" in active and Z is not None:
             dv = self.cfg.diversity
+            if dv.interface_clearance > 0:
+                away = self._away_from_interfaces(xb.reshape(-1, d), dv.interface_clearance)
+                mask = mask & away.reshape(S, m)
             if self.dist is not None:  # all shapes' cross values, exact gradients
                 from .distributed import cross_values_sharded
 
@@ -274,8 +277,8 @@ class ShapeTask(Task):
                 out["diversity"] = -diversity(model, xb, Z, mask, kind=dv.aggregation, p=dv.p)
         return out
 
-    def _away_from_interfaces(self, x: Tensor) -> Tensor:
-        c = self.cfg.sampling.strain_interface_clearance
+    def _away_from_interfaces(self, x: Tensor, c: float) -> Tensor:
+        """``(n,)``: whether each point of ``x (n, d)`` is farther than ``c`` from every interface."""
         if c <= 0 or not self.problem.interfaces:
             return torch.ones(x.shape[0], dtype=torch.bool, device=x.device)
         if self._iface_cloud is None:  # a dense fixed sample of I, for distances
