@@ -44,7 +44,7 @@ class ShapeTask(Task):
         self.Z = fixed_latents(cfg.latents, self.device, dtype)
         self.lo, self.hi = problem.domain.tensors(self.device, dtype)
         self._conn = None
-        self._iface_cloud: Tensor | None = None
+        self._iface_cloud = None  # scipy cKDTree of a dense sample of the interfaces
         s = cfg.sampling
         self.design_loss = C.DesignRegionLoss(power=cfg.losses.containment_power)
         self.obstacle_loss = C.ObstacleLoss(power=cfg.losses.containment_power)
@@ -281,11 +281,14 @@ class ShapeTask(Task):
         """``(n,)``: whether each point of ``x (n, d)`` is farther than ``c`` from every interface."""
         if c <= 0 or not self.problem.interfaces:
             return torch.ones(x.shape[0], dtype=torch.bool, device=x.device)
-        if self._iface_cloud is None:  # a dense fixed sample of I, for distances
+        if self._iface_cloud is None:  # a dense fixed sample of I and its KD-tree, for distances
+            from scipy.spatial import cKDTree
+
             g = torch.Generator(device=self.device).manual_seed(12345)
-            self._iface_cloud, _ = sampling.sample_interfaces(self.problem.interfaces, 20000, g, device=self.device, dtype=self.dtype)
-        dist = torch.cdist(x.detach(), self._iface_cloud).min(dim=1).values
-        return dist > c
+            cloud, _ = sampling.sample_interfaces(self.problem.interfaces, 20000, g, device=self.device, dtype=self.dtype)
+            self._iface_cloud = cKDTree(cloud.detach().cpu().double().numpy())
+        dist, _ = self._iface_cloud.query(x.detach().cpu().double().numpy(), distance_upper_bound=c)
+        return torch.from_numpy(dist > c).to(x.device)
 
     def finalize(self, model: nn.Module, run_dir: Path) -> list[Path]:
         from ..results import write_shape_results
