@@ -130,14 +130,8 @@ def evaluate(
         split = _split_hessian_points(idx, n)
         if split is not None:
             return _evaluate_split(field, x, z, grad, idx, split, create_graph, fast)
-    if grad and (idx is None or idx.numel() == 0):
-        vg = _fast_value_grad(field, x, z, create_graph) if fast else None
-        if vg is not None:
-            out = FieldValues(x=x.detach(), f=vg[0], grad=vg[1])
-            if idx is not None:
-                d = x.shape[-1]
-                out.hessian, out.hessian_grad, out.hessian_index = x.new_zeros((0, d, d)), x.new_zeros((0, d)), idx
-            return out
+    if grad and fast and idx is None and (vg := _fast_value_grad(field, x, z, create_graph)) is not None:
+        return FieldValues(x=x.detach(), f=vg[0], grad=vg[1])
     with torch.enable_grad():
         xr = x.detach().requires_grad_(True) if grad else x.detach()
         f = field(xr, z)
