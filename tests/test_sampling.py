@@ -155,7 +155,9 @@ def test_plateau_polygon_no_normals_and_corners(gen):
     onb = ((x == 0) | (x == 1)).sum(-1)
     assert (onb >= 2).all()
     torch.testing.assert_close(interface_corners([g], dtype=F64), torch.tensor(pts, dtype=F64))
-    assert interface_corners(obstacle_interfaces()).shape == (0, 2)
+    # open polylines expose their end points: the obstacle's two segments give their 4 ends
+    ends = interface_corners(obstacle_interfaces(), dtype=F64)
+    torch.testing.assert_close(ends, torch.tensor([[-0.9, -0.4], [-0.9, 0.4], [0.9, -0.4], [0.9, 0.4]], dtype=F64))
 
 
 def test_polyline_left_right_normals(gen):

@@ -64,8 +64,9 @@ class Polyline(Interface):
             ``"right"`` (the tangent turned by +90 / -90 degrees).
 
     Attributes:
-        corners: ``(c, d)`` float64: all vertices of a closed polyline, the interior vertices of an
-            open one (None for a single segment), for corner weighting.
+        corners: ``(c, d)`` float64: all vertices, for corner weighting (the end points of an open
+            polyline included: there the interface usually meets another constraint, e.g. the
+            obstacle problem's segments end on the design region's boundary).
     """
 
     def __init__(self, points, closed: bool = False, normal=None):
@@ -81,10 +82,7 @@ class Polyline(Interface):
         self.lengths = seg.norm(dim=-1)
         if (self.lengths <= 1e-14).any():
             raise ValueError("polyline has a zero-length segment")
-        # corners: every vertex of a closed polyline, the interior vertices of an open one
-        self.corners = p.clone() if closed else p[1:-1].clone()
-        if self.corners.shape[0] == 0:
-            self.corners = None
+        self.corners = p.clone()
         m = seg.shape[0]
         if normal is None:
             self.has_normals = False
