@@ -127,6 +127,30 @@ def test_distance_between_concentric_circles_closed_form():
     assert torch.allclose(Dm, Dm.T)
 
 
+def test_smoothed_distance_bounds_the_gradient_at_a_collapse():
+    """``eps``: sqrt(d^2 + eps^2) exactly; at coinciding shapes the diversity's gradient is finite
+    with eps and of order 1/sqrt(TINY) without it."""
+    r1, r2 = 0.3, 0.5
+    Z = torch.tensor([[r1], [r2]], dtype=D)
+    xb = torch.stack([_circle_points(r1, 128), _circle_points(r2, 128)])
+    d0 = distance_matrix(cross_values(latent_circles, xb, Z))[0, 1]
+    d1 = distance_matrix(cross_values(latent_circles, xb, Z), eps=0.05)[0, 1]
+    assert d1.item() == pytest.approx(math.sqrt(d0.item() ** 2 + 0.05**2), rel=1e-12)
+
+    def grad_norm(eps, gap):
+        # two nearly coinciding circles and a third one far from both
+        radii = [0.3, 0.3 + gap, 0.6]
+        z = torch.tensor([[r] for r in radii], dtype=D, requires_grad=True)
+        pts = torch.stack([_circle_points(r, 64) for r in radii])
+        (g,) = torch.autograd.grad(diversity(latent_circles, pts, z, eps=eps), z)
+        return g.norm().item()
+
+    # paper distance: d delta / d d_1 = sqrt(delta / d_1) grows like gap^(-1/2)
+    assert grad_norm(0.0, 1e-6) > 50 * grad_norm(0.0, 1e-2)
+    # smoothed: bounded (about sqrt(delta / eps)) however close the shapes come
+    assert grad_norm(0.01, 1e-6) < 2 * grad_norm(0.01, 1e-2)
+
+
 def test_aggregations_on_hand_made_matrices():
     Dm = torch.tensor([[0.0, 1.0, 4.0], [1.0, 0.0, 9.0], [4.0, 9.0, 0.0]], dtype=D)
     # nearest: 1, 1, 4 -> (1 + 1 + 2)^2 = 16

@@ -9,6 +9,14 @@ by the boundary's measure), so that ``d`` is a root-mean-square distance when th
 and does not grow with the size of the boundary. Gradients flow through the field values, not
 through the sample locations (the boundary sensitivity the paper leaves to future work).
 
+Near a collapse the loss is singular: with the minimal aggregation and ``p = 1/2``,
+``d delta / d d_i = sqrt(delta / d_i)`` grows without bound as shape ``i`` and its nearest
+neighbour coincide (``d_i -> 0``) while the others stay apart, so at initialisation, where all
+latents give nearly the same field, a weight as small as 1e-5 can dominate every other term
+(observed: it empties the shapes of a softplus MLP). ``eps > 0`` (``diversity.eps``) smooths the
+distance to ``sqrt(d_ij^2 + eps^2)``, which bounds that gradient and leaves distances well above
+``eps`` unchanged; ``eps = 0`` is the paper's distance.
+
 Aggregations (equations 9-11): minimal ``(sum_i (min_{j != i} d_ij)^p)^(1/p)`` (the paper's default
 with ``p = 1/2``) and total ``(sum_i (sum_j d_ij)^p)^(1/p)``. The loss is ``-delta``.
 """
@@ -66,10 +74,11 @@ def cross_values(field: Field, xb: Tensor, Z: Tensor) -> Tensor:
     return field(X, ZZ).reshape(S, S, m)
 
 
-def distance_matrix(V: Tensor, mask: Tensor | None = None) -> Tensor:
+def distance_matrix(V: Tensor, mask: Tensor | None = None, eps: float = 0.0) -> Tensor:
     """Equation 12 from cross values ``V (S, S, m)`` (``V[i, j] = f_j`` on dOmega_i).
 
-    ``mask (S, m)`` marks valid boundary samples of each shape (None: all valid).
+    ``mask (S, m)`` marks valid boundary samples of each shape (None: all valid); ``eps``
+    smooths the distance to ``sqrt(. + eps^2)`` (module docstring; 0: the paper's).
     Returns the symmetric ``(S, S)`` distance matrix.
     """
     sq = V * V
@@ -78,10 +87,14 @@ def distance_matrix(V: Tensor, mask: Tensor | None = None) -> Tensor:
     else:
         w = mask.to(V.dtype)
         A = (sq * w[:, None, :]).sum(-1) / w.sum(-1).clamp_min(1.0)[:, None]
+    if eps > 0:
+        return (A + A.T + eps * eps).sqrt()
     return (A + A.T).clamp_min(_TINY).sqrt()
 
 
-def diversity(field: Field, xb: Tensor, Z: Tensor, mask: Tensor | None = None, kind: str = "min", p: float = 0.5) -> Tensor:
+def diversity(
+    field: Field, xb: Tensor, Z: Tensor, mask: Tensor | None = None, kind: str = "min", p: float = 0.5, eps: float = 0.0
+) -> Tensor:
     """The diversity ``delta`` of the shapes ``{f(., z_i)}`` from their boundary samples ``xb (S, m, d)``."""
-    D = distance_matrix(cross_values(field, xb, Z), mask)
+    D = distance_matrix(cross_values(field, xb, Z), mask, eps)
     return aggregate(D, kind, p)

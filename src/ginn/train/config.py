@@ -113,6 +113,8 @@ class DiversityConfig(_Strict):
     p: float = Field(0.5, gt=0, description="exponent of the aggregation (paper: 0.5 with min)")
     interface_clearance: float = Field(0.0, ge=0, description="leave boundary points this close to an interface out of "
                                        "the shape distance (every shape must share the interfaces; 0: the paper's full boundary)")
+    eps: float = Field(0.0, ge=0, description="smooth the shape distance to sqrt(d^2 + eps^2), bounding the loss's gradient "
+                       "when shapes coincide (0: the paper's distance, singular there)")
 
 
 class ConnectednessConfig(_Strict):

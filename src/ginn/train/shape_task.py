@@ -272,9 +272,9 @@ class ShapeTask(Task):
                 from .distributed import cross_values_sharded
 
                 V, M = cross_values_sharded(model, xb, Z, mask, self.dist)
-                out["diversity"] = -aggregate(distance_matrix(V, M), dv.aggregation, dv.p)
+                out["diversity"] = -aggregate(distance_matrix(V, M, dv.eps), dv.aggregation, dv.p)
             else:
-                out["diversity"] = -diversity(model, xb, Z, mask, kind=dv.aggregation, p=dv.p)
+                out["diversity"] = -diversity(model, xb, Z, mask, kind=dv.aggregation, p=dv.p, eps=dv.eps)
         return out
 
     def _away_from_interfaces(self, x: Tensor, c: float) -> Tensor:
