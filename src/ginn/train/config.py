@@ -103,7 +103,7 @@ class SamplingConfig(_Strict):
     projection_steps: int = Field(2, ge=0, description="Newton steps of the zero-level-set projection (after a free first step)")
     strain_interface_clearance: float = Field(0.0, ge=0, description="skip boundary points this close to an interface for the strain loss")
     strain_clip: float = Field(1000.0, gt=0, description="clip per-point surface strain at this value")
-    interface_corner_weight: float = Field(1.0, ge=1, description="weight of interface corner samples (Plateau)")
+    interface_corner_weight: float = Field(1.0, ge=1, description="weight of the interfaces' corner samples: polyline vertices, end points included (Plateau)")
 
 
 class DiversityConfig(_Strict):
