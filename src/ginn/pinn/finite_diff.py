@@ -98,3 +98,20 @@ def grid_derivatives(F: Tensor, method: str) -> tuple[Tensor, Tensor]:
     if method == "spectral":
         return spectral_gradient(F), spectral_laplacian(F)
     raise ValueError(f"unknown grid derivative method {method!r} (fd, spectral)")
+
+
+def fourier_shift(F: Tensor, delta: Tensor) -> Tensor:
+    """Resample a periodic grid function at points translated by ``delta`` grid units.
+
+    ``F (..., n, n)`` holds samples at ``((i, j) + o) / n``; the result holds the trigonometric
+    interpolant of ``F`` at ``((i, j) + o + delta) / n`` (exact for fields without energy at the
+    Nyquist mode, whose shifted samples would be complex; the real part is kept).
+
+    Arguments:
+        delta: ``(2,)`` translation in grid units.
+    """
+    n = F.shape[-1]
+    m = torch.fft.fftfreq(n, d=1.0 / n, dtype=F.dtype, device=F.device)
+    d = delta.to(dtype=F.dtype, device=F.device)
+    phase = torch.exp(2j * math.pi * (m[:, None] * d[0] + m[None, :] * d[1]) / n)
+    return torch.fft.ifft2(torch.fft.fft2(F) * phase).real
