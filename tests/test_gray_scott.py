@@ -236,3 +236,35 @@ def test_fourier_model_and_bad_model_kind():
     bad = build_config({"problem": "gray-scott", "model": {"kind": "resmlp"}})
     with pytest.raises(ConfigError, match="model.kind"):
         GrayScottTask(bad, torch.device("cpu"), torch.float32).build_model()
+
+
+def test_step_target_is_reused_and_shifted_for_step_reuse_iterations():
+    """``residual_gradient = step`` with ``step_reuse = 3``: the target computed at iteration 0 is
+    reused (moved by an exact Fourier shift to the new grid offset) at iterations 1 and 2, and
+    recomputed from the current state at iteration 3; with ``step_reuse = 1`` it is always fresh."""
+    from ginn.pinn.finite_diff import fourier_shift, grid_points
+    from ginn.pinn.gray_scott import pseudo_time_step
+
+    cfg = _cfg(residual_gradient="step", step_reuse=3, step_count=5, grid=16)
+    task = GrayScottTask(cfg, torch.device("cpu"), torch.float64)
+    gs = task.params.gs
+    Z = torch.zeros(2, 2, dtype=torch.float64)
+
+    def state(offset, amp):  # a band-limited pattern on the translated grid, (S, 2, n, n)
+        X = grid_points(16, offset, dtype=torch.float64)
+        f = torch.sin(2 * math.pi * (2 * X[..., 0] + X[..., 1]))
+        return torch.stack([1.0 - amp * f, amp * (1 + f)])[None].expand(2, -1, -1, -1).clone()
+
+    o0, o1, o3 = (torch.tensor(o, dtype=torch.float64) for o in ([0.2, 0.5], [0.7, 0.1], [0.4, 0.9]))
+    T0 = task._step_target(state(o0, 0.2), Z, o0, 0)
+    assert torch.allclose(T0, pseudo_time_step(state(o0, 0.2), gs, 1.0, 5), atol=1e-14)
+    # iteration 1: another state (amp 0.3) and offset, but the stored target, shifted
+    T1 = task._step_target(state(o1, 0.3), Z, o1, 1)
+    assert torch.allclose(T1, fourier_shift(T0, o1 - o0), atol=1e-12)
+    assert not torch.allclose(T1, pseudo_time_step(state(o1, 0.3), gs, 1.0, 5), atol=1e-3)  # not recomputed
+    T3 = task._step_target(state(o3, 0.3), Z, o3, 3)
+    assert torch.allclose(T3, pseudo_time_step(state(o3, 0.3), gs, 1.0, 5), atol=1e-14)
+
+    fresh = GrayScottTask(_cfg(residual_gradient="step", step_reuse=1, step_count=5, grid=16), torch.device("cpu"), torch.float64)
+    fresh._step_target(state(o0, 0.2), Z, o0, 0)
+    assert torch.allclose(fresh._step_target(state(o1, 0.3), Z, o1, 1), pseudo_time_step(state(o1, 0.3), gs, 1.0, 5), atol=1e-14)
