@@ -107,3 +107,36 @@ def test_diversity_interface_clearance_drops_points_near_interfaces():
     assert near == full  # every disk stays at least 0.3 away from the interfaces
     # no sample left: every distance is its floor sqrt(1e-12), delta = (4 * (1e-6)^(1/2))^2
     assert none_left == pytest.approx(-1.6e-5, rel=1e-5)
+
+
+def test_containment_margin_shifts_the_floor_outwards():
+    """``losses.containment_margin = m``: the floor is ``slope * max(0, d_E - m)``; the flat field
+    ``f = 1e-3`` then costs the mean of (max(0, d_E - m) - 1e-3)_+^2 outside E, and the field
+    ``max(0, d_E - m)`` costs nothing (and something without the margin)."""
+    spec = load_spec("obstacle")
+    m = 0.03
+    cfg = resolve_config(spec, "single", {"losses": {"containment_slope": 1.0, "containment_margin": m}})
+    task = make_task(spec, cfg)
+    active = {"design_region"}
+
+    class Field(torch.nn.Module):
+        def __init__(self, fn):
+            super().__init__()
+            self.fn = fn
+
+        def forward(self, x, z=None):
+            return self.fn(x)
+
+    def d_out(x):  # distance into X \ E: the frame around the rectangle and the disk
+        d_frame = torch.sqrt((x[:, 0].abs() - 0.9).clamp_min(0) ** 2 + (x[:, 1].abs() - 0.4).clamp_min(0) ** 2)
+        return torch.maximum(d_frame, 0.1 - x.norm(dim=-1))
+
+    flat = Field(lambda x: 0.0 * x[:, 0] + 1e-3)
+    out = task.loss_terms(flat, 0, active, torch.Generator().manual_seed(5))
+    xo = task.sample(1, active, torch.Generator().manual_seed(5))["outside"][0]
+    expected = (1e-3 - (d_out(xo) - m).clamp_min(0)).clamp(max=0).pow(2).mean().item()
+    assert expected > 1e-4 and out["design_region"].item() == pytest.approx(expected, rel=1e-5)
+    late = Field(lambda x: (d_out(x) - m).clamp_min(0))  # zero up to m beyond E, then slope 1
+    assert task.loss_terms(late, 0, active, torch.Generator().manual_seed(5))["design_region"].item() < 1e-15
+    plain = make_task(spec, resolve_config(spec, "single", {"losses": {"containment_slope": 1.0}}))
+    assert plain.loss_terms(late, 0, active, torch.Generator().manual_seed(5))["design_region"].item() > 1e-5

@@ -89,6 +89,13 @@ class LossesConfig(_Strict):
         description="penalise f below slope * (distance into X minus E, or into an obstacle) instead of below 0; "
         "0 is the paper's loss, 1 is exact for a signed distance field of any shape inside E",
     )
+    containment_margin: float = Field(
+        0.0,
+        ge=0,
+        description="with containment_slope > 0: the floor starts this far beyond E (or inside an obstacle): "
+        "f must reach slope * max(0, distance - margin); within the margin only f >= 0 is asked, which leaves "
+        "a smooth field room to round the corners where an interface ends on the boundary of E",
+    )
 
 
 class SamplingConfig(_Strict):

@@ -207,14 +207,15 @@ class ShapeTask(Task):
         forbidden set: outside E (``sign = 1``: the design region's SDF) or into an obstacle
         (``sign = -1``: minus the obstacle's SDF, the largest over the obstacles). A signed distance
         field of any shape inside E is at least this distance there, so the floor is exact for
-        ``slope = 1``; returns 0 (the paper's loss) when the slope is 0."""
-        slope = self.cfg.losses.containment_slope
+        ``slope = 1``; returns 0 (the paper's loss) when the slope is 0. ``losses.containment_margin``
+        is subtracted from the distance (clamped at 0)."""
+        slope, margin = self.cfg.losses.containment_slope, self.cfg.losses.containment_margin
         if slope == 0:
             return 0.0
         flat = x.reshape(-1, self.d)
         regions = regions if isinstance(regions, (list, tuple)) else [regions]
         depth = torch.stack([sign * r.sdf(flat) for r in regions]).amax(dim=0)
-        return slope * depth.clamp_min(0.0).detach()
+        return slope * (depth - margin).clamp_min(0.0).detach()
 
     def _corner_values(self, model: nn.Module, Z: Tensor | None) -> Tensor:
         c = self.corners
