@@ -268,3 +268,28 @@ def test_step_target_is_reused_and_shifted_for_step_reuse_iterations():
     fresh = GrayScottTask(_cfg(residual_gradient="step", step_reuse=1, step_count=5, grid=16), torch.device("cpu"), torch.float64)
     fresh._step_target(state(o0, 0.2), Z, o0, 0)
     assert torch.allclose(fresh._step_target(state(o1, 0.3), Z, o1, 1), pseudo_time_step(state(o1, 0.3), gs, 1.0, 5), atol=1e-14)
+
+
+def test_step_sobolev_adds_the_diffusion_weighted_misfit():
+    """``step_sobolev = c``: the logged misfit is ``mean |W - T|^2 + c mean |D lap (W - T)|^2``;
+    for ``W - T = eps sin(2 pi m . x)`` in v only (u exact) that is
+    ``eps^2 / 4 (1 + c D_v^2 (2 pi |m|)^4)`` (half of the entries are v's, mean sin^2 = 1/2)."""
+    eps, m, c = 0.01, (3, 2), 100.0
+    task = GrayScottTask(_cfg(derivatives="spectral", residual_gradient="step", step_sobolev=c), torch.device("cpu"), torch.float64)
+    model = GrayScottField(_Analytic(0.8, 0.1, m), _Analytic(0.2, 0.05, m))
+    n = task.params.grid
+
+    def target(W, Z, offset, step):
+        X = grid_points(n, offset, dtype=W.dtype)
+        d = eps * torch.sin(2 * math.pi * (m[0] * X[..., 0] + m[1] * X[..., 1]))
+        T = W.detach().clone()
+        T[:, 1] -= d
+        return T
+
+    from ginn.pinn.finite_diff import grid_points
+
+    task._step_target = target
+    out = _terms(task, model)
+    k2 = (2 * math.pi) ** 2 * (m[0] ** 2 + m[1] ** 2)
+    expected = eps**2 / 4 * (1 + c * task.params.gs.D_v**2 * k2**2)
+    assert out["_step_misfit"].item() == pytest.approx(expected, rel=1e-10)

@@ -41,7 +41,7 @@ from ..losses.diversity import aggregate
 from ..models import FourierMLP, PeriodicEncoding, Siren
 from ..train.config import LossTerm, RunConfig
 from ..train.task import Task
-from .finite_diff import fourier_shift, grid_derivatives, grid_points
+from .finite_diff import fourier_shift, grid_derivatives, grid_points, spectral_laplacian
 from .solver import GSParams
 
 
@@ -73,6 +73,9 @@ class GrayScottParams(BaseModel):
     flow_steps: int = Field(0, ge=0, description="with residual_gradient=flow/step: switch to full after this many iterations (0: never)")
     step_dt: float = Field(1.0, gt=0, description="pseudo-time sub-step of residual_gradient=step")
     step_count: int = Field(10, ge=1, description="sub-steps per target of residual_gradient=step (target time step_dt * step_count)")
+    step_sobolev: float = Field(
+        0.0, ge=0, description="residual_gradient=step: add this weight times mean |D lap (W - target)|^2 (D = D_u, D_v) "
+        "to the regression, so that the network's error is also weighted where diffusion amplifies it into the residual")
     step_reuse: int = Field(
         1, ge=1, description="residual_gradient=step: iterations that regress on one target (computed every step_reuse "
         "iterations and moved to each iteration's translated grid by an exact Fourier shift)")
@@ -287,6 +290,9 @@ class GrayScottTask(Task):
                 target = self._step_target(W, Z, offset, step)
                 d = W - target
                 fit = (d * d).mean() * 2.0
+                if p.step_sobolev > 0:
+                    Dd = torch.tensor([gs.D_u, gs.D_v], dtype=W.dtype, device=W.device)[:, None, None] * spectral_laplacian(d)
+                    fit = fit + p.step_sobolev * (Dd * Dd).mean() * 2.0
                 out["residual"] = res.detach() + fit - fit.detach()
                 out["_step_misfit"] = fit.detach() / 2.0
         g2 = (G * G).sum(dim=(1, 2)).mean(dim=(-2, -1))  # (S,)
