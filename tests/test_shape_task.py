@@ -7,6 +7,24 @@ from ginn.problems import load_spec
 from ginn.train.registry import make_task, resolve_config
 
 
+class _FnField(torch.nn.Module):
+    """A field given by a function of the points (no latent)."""
+
+    def __init__(self, fn):
+        super().__init__()
+        self.fn = fn
+
+    def forward(self, x, z=None):
+        return self.fn(x)
+
+
+def _depth_outside_obstacle_region(x):
+    """Distance of ``x (n, 2)`` into the complement of E of the obstacle problem: the frame around
+    the rectangle [-0.9, 0.9] x [-0.4, 0.4] and the disk of radius 0.1 at the origin."""
+    d_frame = torch.sqrt((x[:, 0].abs() - 0.9).clamp_min(0) ** 2 + (x[:, 1].abs() - 0.4).clamp_min(0) ** 2)
+    return torch.maximum(d_frame, 0.1 - x.norm(dim=-1))
+
+
 def test_every_shape_sees_every_interface():
     spec = load_spec("obstacle")
     cfg = resolve_config(spec, "demo", {"sampling": {"n_interface": 64}})
@@ -54,26 +72,16 @@ def test_containment_slope_is_exact_for_sdfs_and_catches_flat_fields():
     task = make_task(spec, cfg)
     active = {"design_region", "obstacle"}
 
-    class Field(torch.nn.Module):
-        def __init__(self, fn):
-            super().__init__()
-            self.fn = fn
-
-        def forward(self, x, z=None):
-            return self.fn(x)
-
     c = torch.tensor([0.5, 0.0])
-    sdf = Field(lambda x: (x - c).norm(dim=-1) - 0.2)
+    sdf = _FnField(lambda x: (x - c).norm(dim=-1) - 0.2)
     out = task.loss_terms(sdf, 0, active, torch.Generator().manual_seed(5))
     assert out["design_region"].item() == 0.0 and out["obstacle"].item() == 0.0
 
-    flat = Field(lambda x: 0.0 * x[:, 0] + 1e-3)
+    flat = _FnField(lambda x: 0.0 * x[:, 0] + 1e-3)
     out = task.loss_terms(flat, 0, active, torch.Generator().manual_seed(5))
     pts = task.sample(1, active, torch.Generator().manual_seed(5))
     xo = pts["outside"][0]
-    # X \ E is the frame around the rectangle and the obstacle's disk
-    d_frame = torch.sqrt((xo[:, 0].abs() - 0.9).clamp_min(0) ** 2 + (xo[:, 1].abs() - 0.4).clamp_min(0) ** 2)
-    d_out = torch.maximum(d_frame, 0.1 - xo.norm(dim=-1))
+    d_out = _depth_outside_obstacle_region(xo)
     expected = (1e-3 - d_out).clamp(max=0).pow(2).mean().item()
     assert expected > 1e-4 and out["design_region"].item() == pytest.approx(expected, rel=1e-5)
     d_obs = (0.1 - pts["obstacle"][0].norm(dim=-1)).clamp_min(0)  # depth into the disk
@@ -119,24 +127,14 @@ def test_containment_margin_shifts_the_floor_outwards():
     task = make_task(spec, cfg)
     active = {"design_region"}
 
-    class Field(torch.nn.Module):
-        def __init__(self, fn):
-            super().__init__()
-            self.fn = fn
+    d_out = _depth_outside_obstacle_region
 
-        def forward(self, x, z=None):
-            return self.fn(x)
-
-    def d_out(x):  # distance into X \ E: the frame around the rectangle and the disk
-        d_frame = torch.sqrt((x[:, 0].abs() - 0.9).clamp_min(0) ** 2 + (x[:, 1].abs() - 0.4).clamp_min(0) ** 2)
-        return torch.maximum(d_frame, 0.1 - x.norm(dim=-1))
-
-    flat = Field(lambda x: 0.0 * x[:, 0] + 1e-3)
+    flat = _FnField(lambda x: 0.0 * x[:, 0] + 1e-3)
     out = task.loss_terms(flat, 0, active, torch.Generator().manual_seed(5))
     xo = task.sample(1, active, torch.Generator().manual_seed(5))["outside"][0]
     expected = (1e-3 - (d_out(xo) - m).clamp_min(0)).clamp(max=0).pow(2).mean().item()
     assert expected > 1e-4 and out["design_region"].item() == pytest.approx(expected, rel=1e-5)
-    late = Field(lambda x: (d_out(x) - m).clamp_min(0))  # zero up to m beyond E, then slope 1
+    late = _FnField(lambda x: (d_out(x) - m).clamp_min(0))  # zero up to m beyond E, then slope 1
     assert task.loss_terms(late, 0, active, torch.Generator().manual_seed(5))["design_region"].item() < 1e-15
     plain = make_task(spec, resolve_config(spec, "single", {"losses": {"containment_slope": 1.0}}))
     assert plain.loss_terms(late, 0, active, torch.Generator().manual_seed(5))["design_region"].item() > 1e-5
