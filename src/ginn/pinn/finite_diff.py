@@ -111,7 +111,7 @@ def fourier_shift(F: Tensor, delta: Tensor) -> Tensor:
         delta: ``(2,)`` translation in grid units.
     """
     n = F.shape[-1]
-    m = torch.fft.fftfreq(n, d=1.0 / n, dtype=F.dtype, device=F.device)
+    k = _wavenumbers(n, F.dtype, F.device)
     d = delta.to(dtype=F.dtype, device=F.device)
-    phase = torch.exp(2j * math.pi * (m[:, None] * d[0] + m[None, :] * d[1]) / n)
+    phase = torch.exp(1j * (k[:, None] * d[0] + k[None, :] * d[1]) / n)
     return torch.fft.ifft2(torch.fft.fft2(F) * phase).real
