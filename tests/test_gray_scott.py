@@ -13,6 +13,7 @@ from ginn.pinn.gray_scott import (
     GrayScottTask,
     parse_params,
     pattern_distance,
+    sample_grid,
     shift_invariant_sq_distance,
 )
 from ginn.pinn.solver import GSParams
@@ -293,3 +294,34 @@ def test_step_sobolev_adds_the_diffusion_weighted_misfit():
     k2 = (2 * math.pi) ** 2 * (m[0] ** 2 + m[1] ** 2)
     expected = eps**2 / 4 * (1 + c * task.params.gs.D_v**2 * k2**2)
     assert out["_step_misfit"].item() == pytest.approx(expected, rel=1e-10)
+
+
+def test_fine_grid_takes_over_from_fine_grid_from():
+    """``fine_grid = 16, fine_grid_from = 2`` on a ``grid = 8`` run: iterations 0 and 1 train on 8²,
+    from iteration 2 on 16². Checked through the loss: for ``v = 0.2 + 0.05 sin(2 pi (5 x + y))``
+    (5 cycles: aliased on 8², exact on 16²) the logged mean(R^2) equals the residual recomputed on the
+    grid of that iteration, and the two grids give different values."""
+    from ginn.pinn.finite_diff import grid_derivatives
+
+    task = GrayScottTask(_cfg(derivatives="spectral", grid=8, fine_grid=16, fine_grid_from=2, D_v=1e-3),
+                        torch.device("cpu"), torch.float64)
+    assert [task.grid_at(s) for s in (0, 1, 2, 50)] == [8, 8, 16, 16]
+    model = GrayScottField(_Analytic(0.8, 0.1, (5, 1)), _Analytic(0.2, 0.05, (5, 1)))
+    gs = task.params.gs
+
+    def expected(n, off):
+        W = sample_grid(model, task.Z, n, off)
+        _, Lap = grid_derivatives(W, "spectral")
+        u, v = W[:, 0], W[:, 1]
+        Ru = gs.D_u * Lap[:, 0] - u * v * v + gs.alpha * (1 - u)
+        Rv = gs.D_v * Lap[:, 1] + u * v * v - (gs.alpha + gs.beta) * v
+        return ((Ru**2).mean() + (Rv**2).mean()).item()
+
+    got = {}
+    for step in (1, 2):
+        g = torch.Generator().manual_seed(0)
+        got[step] = task.loss_terms(model, step, {"residual"}, g)["_residual"].item()
+    off = torch.rand(2, generator=torch.Generator().manual_seed(0), dtype=torch.float64)
+    assert got[1] == pytest.approx(expected(8, off), rel=1e-12)
+    assert got[2] == pytest.approx(expected(16, off), rel=1e-12)
+    assert abs(got[1] - got[2]) > 0.3 * got[2]  # with D_v = 1e-3 the diffusion term dominates R

@@ -63,6 +63,10 @@ class GrayScottParams(BaseModel):
     alpha: float = Field(0.028, gt=0, description="feed rate")
     beta: float = Field(0.057, gt=0, description="kill rate")
     grid: int = Field(64, ge=8, description="training grid points per axis")
+    fine_grid: int = Field(
+        0, ge=0, description="from iteration fine_grid_from on, train on this grid instead of `grid` (0: never); a "
+        "finer grid holds the pattern's harmonics above the coarse grid's Nyquist frequency")
+    fine_grid_from: int = Field(0, ge=0, description="first iteration on `fine_grid`")
     translate: bool = Field(True, description="translate the training grid randomly every iteration")
     derivatives: Literal["fd", "spectral", "autograd"] = "fd"
     gradient_cap: float = Field(1.0, gt=0, description="the gradient reward saturates at this mean |grad|^2")
@@ -249,9 +253,16 @@ class GrayScottTask(Task):
             return (lat.low + (lat.high - lat.low) * r).to(self.device)
         return torch.zeros(1, 0, dtype=self.dtype, device=self.device)
 
-    def fields_and_derivatives(self, model: GrayScottField, Z: Tensor, offset: Tensor | None) -> tuple[Tensor, Tensor, Tensor]:
-        """``W (S, 2, n, n)``, gradients ``(S, 2, 2, n, n)`` (field, axis) and Laplacians ``(S, 2, n, n)``."""
-        n = self.params.grid
+    def grid_at(self, step: int) -> int:
+        """Training grid points per axis at iteration ``step`` (``grid``, then ``fine_grid``)."""
+        p = self.params
+        return p.fine_grid if p.fine_grid > 0 and step >= p.fine_grid_from else p.grid
+
+    def fields_and_derivatives(self, model: GrayScottField, Z: Tensor, offset: Tensor | None,
+                               n: int | None = None) -> tuple[Tensor, Tensor, Tensor]:
+        """``W (S, 2, n, n)``, gradients ``(S, 2, 2, n, n)`` (field, axis) and Laplacians ``(S, 2, n, n)``
+        on the ``n``-point grid (default ``params.grid``)."""
+        n = self.params.grid if n is None else n
         if self.params.derivatives in ("fd", "spectral"):
             W = sample_grid(model, Z, n, offset)
             G, Lap = grid_derivatives(W, self.params.derivatives)
@@ -273,7 +284,7 @@ class GrayScottTask(Task):
         p, gs = self.params, self.params.gs
         Z = self._batch_latents(gen)
         offset = torch.rand(2, generator=gen, dtype=self.dtype).to(self.device) if p.translate else None
-        W, G, Lap = self.fields_and_derivatives(model, Z, offset)
+        W, G, Lap = self.fields_and_derivatives(model, Z, offset, self.grid_at(step))
         u, v = W[:, 0], W[:, 1]
         uvv = u * v * v
         Ru = gs.D_u * Lap[:, 0] - uvv + gs.alpha * (1.0 - u)
