@@ -54,3 +54,13 @@ for p in sys.argv[1:]:
 
 # 6. the slow test
 .venv/bin/python -m pytest -m slow tests/test_bracket_training_slow.py -q -s
+
+# 4. sixth session: the fourth session's b11 (local losses first, envelope 1000, 3600 iterations)
+#    with a higher first-layer frequency (docs/bracket.md, "Sixth session"); one thread each
+B11="--set losses.containment_slope=1 --set losses.connectedness.start=1200 --set losses.normal.weight=1
+     --set losses.eikonal.weight=1 --set losses.design_region.start=600 --set losses.design_region.weight=1000
+     --set losses.interface.weight=100 --set training.iterations=3600 --set training.lr_decay_every=1200"
+for w in 16 24 32; do
+  $GINN train bracket --preset cpu --out runs/bracket-b11-w$w $T1 $B11 --set model.w0_first=$w > runs/bracket-b11-w$w.log 2>&1
+  $GINN eval runs/bracket-b11-w$w --resolution 256
+done
