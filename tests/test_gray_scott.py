@@ -321,3 +321,25 @@ def test_fine_grid_takes_over_from_fine_grid_from():
     assert got[1] == pytest.approx(expected(8, off), rel=1e-12)
     assert got[2] == pytest.approx(expected(16, off), rel=1e-12)
     assert abs(got[1] - got[2]) > 0.3 * got[2]  # with D_v = 1e-3 the diffusion term dominates R
+
+
+def test_flow_steps_switches_step_to_the_full_residual_gradient():
+    """``residual_gradient = step, flow_steps = 2``: iteration 1 optimises the step regression (its
+    gradient differs from that of mean(R^2)), from iteration 2 on the residual term's gradient is
+    exactly the paper's gradient of mean(R^2) (the quick preset's final polish)."""
+    def grads(task, step):
+        model = GrayScottField(_Analytic(0.8, 0.1, (3, 1)), _Analytic(0.2, 0.05, (3, 1)))
+        g = torch.Generator().manual_seed(step)
+        out = task.loss_terms(model, step, {"residual"}, g)
+        return torch.stack(torch.autograd.grad(out["residual"], list(model.parameters()))), out
+
+    kw = dict(derivatives="spectral", grid=16, D_v=1e-3, step_count=5)
+    switched = GrayScottTask(_cfg(residual_gradient="step", flow_steps=2, **kw), torch.device("cpu"), torch.float64)
+    full = GrayScottTask(_cfg(residual_gradient="full", **kw), torch.device("cpu"), torch.float64)
+    g1, out1 = grads(switched, 1)
+    g2, out2 = grads(switched, 2)
+    f1, _ = grads(full, 1)
+    f2, _ = grads(full, 2)
+    assert "_step_misfit" in out1 and "_step_misfit" not in out2
+    assert torch.allclose(g2, f2, rtol=1e-12, atol=0) and f2.abs().min() > 0
+    assert not torch.allclose(g1, f1, rtol=1e-2)

@@ -62,6 +62,25 @@ def test_lr_schedule_halves_every_k():
     assert tr.optimizer.param_groups[0]["lr"] == pytest.approx(1e-2 * 0.25, rel=1e-9)
 
 
+def test_lr_restart_jumps_to_lr_restart_and_decays_from_there():
+    """lr 1e-2 halved every 10; at iteration 15 it restarts at 4e-3: lr(14) = 1e-2 * 0.5^1.4,
+    lr(15) = 4e-3, lr(25) = 2e-3."""
+    c = cfg(iterations=26, lr_decay_every=10, lr_decay=0.5, lr_restart_at=15, lr_restart=4e-3)
+    tr = Trainer(CircleFit(c), c, None, progress=False)
+    seen = {}
+    step = tr.scheduler.step
+
+    def record():
+        step()
+        seen[tr.scheduler.last_epoch] = tr.optimizer.param_groups[0]["lr"]
+
+    tr.scheduler.step = record
+    tr.train()
+    assert seen[14] == pytest.approx(1e-2 * 0.5**1.4, rel=1e-9)
+    assert seen[15] == pytest.approx(4e-3, rel=1e-9)
+    assert seen[25] == pytest.approx(2e-3, rel=1e-9)
+
+
 def test_start_iteration_switches_term_on(tmp_path):
     c = cfg(iterations=8)
     tr = Trainer(CircleFit(c), c, tmp_path, progress=False)

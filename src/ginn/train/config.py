@@ -156,6 +156,10 @@ class TrainingConfig(_Strict):
     lr: float = Field(1e-3, gt=0)
     lr_decay: float = Field(0.5, gt=0, le=1, description="learning rate is lr * lr_decay^(t / lr_decay_every)")
     lr_decay_every: int = Field(1000, gt=0)
+    lr_restart_at: int = Field(
+        0, ge=0, description="from this iteration on (0: never) the learning rate restarts at lr_restart and decays "
+        "from there: lr_restart * lr_decay^((t - lr_restart_at) / lr_decay_every)")
+    lr_restart: float = Field(1e-4, gt=0, description="learning rate at iteration lr_restart_at")
     grad_clip: float = Field(1.0, ge=0, description="clip the gradient norm (0: off)")
     log_every: int = Field(10, ge=1)
     checkpoint_every: int = Field(200, ge=1)

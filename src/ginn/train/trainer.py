@@ -28,7 +28,7 @@ from torch import nn
 from ..errors import GinnError
 from .balancing import make_balancer
 from .checkpoint import load_checkpoint, rng_state, save_checkpoint, set_rng_state
-from .config import RunConfig
+from .config import RunConfig, TrainingConfig
 from .task import Task
 
 class TrainingDiverged(GinnError):
@@ -36,6 +36,14 @@ class TrainingDiverged(GinnError):
 
 
 DTYPES = {"float32": torch.float32, "float64": torch.float64}
+
+
+def lr_factor(t: TrainingConfig, it: int) -> float:
+    """Learning rate at iteration ``it`` relative to ``t.lr``: ``lr_decay^(it / lr_decay_every)``, and
+    from ``lr_restart_at`` (if > 0) on ``lr_restart / lr * lr_decay^((it - lr_restart_at) / lr_decay_every)``."""
+    if t.lr_restart_at > 0 and it >= t.lr_restart_at:
+        return t.lr_restart / t.lr * t.lr_decay ** ((it - t.lr_restart_at) / t.lr_decay_every)
+    return t.lr_decay ** (it / t.lr_decay_every)
 
 
 @dataclass
@@ -119,9 +127,7 @@ class Trainer:
         t = cfg.training
         self.optimizer = torch.optim.Adam(self.model.parameters(), lr=t.lr)
         self.lr_scale = 1.0
-        self.scheduler = torch.optim.lr_scheduler.LambdaLR(
-            self.optimizer, lambda it: t.lr_decay ** (it / t.lr_decay_every)
-        )
+        self.scheduler = torch.optim.lr_scheduler.LambdaLR(self.optimizer, lambda it: lr_factor(t, it))
         self.terms = task.terms()
         self.balancer = make_balancer(self.terms, cfg.balancing)
         self.step = 0
@@ -192,7 +198,7 @@ class Trainer:
         t = self.cfg.training
         self.scheduler.base_lrs = [t.lr * self.lr_scale for _ in self.scheduler.base_lrs]
         for g in self.optimizer.param_groups:
-            g["lr"] = t.lr * self.lr_scale * t.lr_decay ** (self.scheduler.last_epoch / t.lr_decay_every)
+            g["lr"] = t.lr * self.lr_scale * lr_factor(t, self.scheduler.last_epoch)
 
     def _rollback(self) -> None:
         if self.rollbacks >= self.cfg.training.max_rollbacks:
