@@ -253,6 +253,20 @@ class GrayScottTask(Task):
             return (lat.low + (lat.high - lat.low) * r).to(self.device)
         return torch.zeros(1, 0, dtype=self.dtype, device=self.device)
 
+    def state_dict(self) -> dict:
+        """The stored pseudo-time target (``residual_gradient = step``), so that a resumed run reuses
+        it exactly as the uninterrupted run would."""
+        c = self._target_cache
+        return {} if c is None else {"target": {"step": c[0], "offset": c[1], "target": c[2], "latents": c[3]}}
+
+    def load_state_dict(self, state: dict) -> None:
+        t = state.get("target") if state else None
+        if t is None:
+            self._target_cache = None
+            return
+        dev = dict(device=self.device, dtype=self.dtype)
+        self._target_cache = (int(t["step"]), t["offset"].to(**dev), t["target"].to(**dev), t["latents"].to(**dev))
+
     def grid_at(self, step: int) -> int:
         """Training grid points per axis at iteration ``step`` (``grid``, then ``fine_grid``)."""
         p = self.params
