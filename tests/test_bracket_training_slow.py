@@ -28,8 +28,9 @@ pytestmark = pytest.mark.slow
 # The cpu preset with a smaller model, fewer points and iterations, and Table 2's envelope, normal
 # and eikonal weights (the configuration the bounds below were measured with).
 REDUCED = {
-    "model": {"hidden": [96, 96, 96]},
-    "losses": {"design_region": {"weight": 0.1}, "normal": {"weight": 1e-6}, "eikonal": {"weight": 1e-9}},
+    "model": {"hidden": [96, 96, 96], "w0_first": 8.0},
+    "losses": {"interface": {"weight": 1.0}, "design_region": {"weight": 0.1, "start": 0}, "normal": {"weight": 1e-6},
+               "eikonal": {"weight": 1e-9}, "connectedness": {"start": 0}, "containment_slope": 0.0},
     "sampling": {"n_domain": 1024, "n_outside": 512, "n_interface": 512, "n_band": 512, "n_boundary": 128},
     "connectedness": {"every": 5, "grid": 10},
     "training": {"iterations": 300, "lr_decay_every": 150, "checkpoint_every": 1000, "threads": 1},
