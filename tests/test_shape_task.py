@@ -138,3 +138,30 @@ def test_containment_margin_shifts_the_floor_outwards():
     assert task.loss_terms(late, 0, active, torch.Generator().manual_seed(5))["design_region"].item() < 1e-15
     plain = make_task(spec, resolve_config(spec, "single", {"losses": {"containment_slope": 1.0}}))
     assert plain.loss_terms(late, 0, active, torch.Generator().manual_seed(5))["design_region"].item() > 1e-5
+
+
+def test_band_containment_adds_the_band_points_outside_E():
+    """``sampling.band_containment``: the design-region term is the mean penalty over the uniform
+    samples outside E *and* the band samples (within ``interface_band`` of an interface) that lie
+    outside E. The obstacle's interfaces x = +-0.9 lie on dE, so about half of the band is outside."""
+    base = load_spec("obstacle")
+    spec = base.model_copy(update={"geometry": base.geometry.model_copy(update={"interface_band": 0.05})})
+    over = {"sampling": {"n_band": 256, "n_outside": 64}}
+    task = make_task(spec, resolve_config(spec, "single", {**over, "sampling": {**over["sampling"], "band_containment": True}}))
+    plain = make_task(spec, resolve_config(spec, "single", over))
+    active = {"design_region"}
+    # a film of half-width 0.02 around the interfaces: it leaves E only near them
+    field = _FnField(lambda x: torch.sqrt((x[:, 0].abs() - 0.9) ** 2 + (x[:, 1].abs() - 0.4).clamp_min(0) ** 2) - 0.02)
+    pts = task.sample(1, active, torch.Generator().manual_seed(7))
+    xo, xb = pts["outside"][0], pts["band"][0]
+    outside_band = xb[_depth_outside_obstacle_region(xb) > 0]
+    assert 0.3 * 256 < outside_band.shape[0] < 0.7 * 256
+    fo = torch.cat([field(xo), field(outside_band)])
+    expected = fo.clamp(max=0).pow(2).mean().item()
+    got = task.loss_terms(field, 0, active, torch.Generator().manual_seed(7))["design_region"].item()
+    assert got == pytest.approx(expected, rel=1e-5)
+    # without the option only the uniform samples count; the band samples sit where the violation
+    # is, so the denser estimate is larger here
+    only = plain.loss_terms(field, 0, active, torch.Generator().manual_seed(7))["design_region"].item()
+    assert only == pytest.approx(field(xo).clamp(max=0).pow(2).mean().item(), rel=1e-5)
+    assert got > only

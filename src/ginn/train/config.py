@@ -106,6 +106,11 @@ class SamplingConfig(_Strict):
     n_obstacle: int = Field(512, ge=0, description="points inside obstacles")
     n_interface: int = Field(512, gt=0, description="points on the interfaces")
     n_band: int = Field(0, ge=0, description="extra points in a band around the interfaces")
+    band_containment: bool = Field(
+        False,
+        description="also apply the design-region loss to the band points that lie outside E (a denser "
+        "estimate where a shape attached to an interface on dE tends to bulge out of E)",
+    )
     n_boundary: int = Field(512, ge=0, description="points projected onto f = 0 (curvature, strain, diversity)")
     projection_steps: int = Field(2, ge=0, description="Newton steps of the zero-level-set projection (after a free first step)")
     strain_interface_clearance: float = Field(0.0, ge=0, description="skip boundary points this close to an interface for the strain loss")

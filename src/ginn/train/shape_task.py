@@ -175,8 +175,16 @@ class ShapeTask(Task):
             ge = part_g["domain"] if "band" not in part_g else torch.cat([part_g["domain"], part_g["band"]], dim=1)
             out["eikonal"] = self.eikonal_loss(ge.reshape(-1, self.d))
         if "design_region" in active and "outside" in part_f:
-            fo = part_f["outside"].reshape(-1)
-            out["design_region"] = self.design_loss(fo - self._containment_floor(pts["outside"], self.problem.design_region, 1.0))
+            E = self.problem.design_region
+            fo = part_f["outside"].reshape(-1) - self._containment_floor(pts["outside"], E, 1.0)
+            if self.cfg.sampling.band_containment and "band" in part_f:
+                # band points outside E join the outside samples: a denser estimate near the
+                # interfaces on dE (the mean is then no longer a uniform estimate over X \ E)
+                xb = pts["band"].reshape(-1, self.d)
+                out_b = ~E.contains(xb)
+                fb = part_f["band"].reshape(-1)[out_b] - self._containment_floor(xb[out_b], E, 1.0)
+                fo = torch.cat([fo, fb])
+            out["design_region"] = self.design_loss(fo)
         if "obstacle" in active and "obstacle" in part_f:
             fo = part_f["obstacle"].reshape(-1)
             out["obstacle"] = self.obstacle_loss(fo - self._containment_floor(pts["obstacle"], self.problem.obstacles, -1.0))
