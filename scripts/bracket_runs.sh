@@ -64,3 +64,16 @@ for w in 16 24 32; do
   $GINN train bracket --preset cpu --out runs/bracket-b11-w$w $T1 $B11 --set model.w0_first=$w > runs/bracket-b11-w$w.log 2>&1
   $GINN eval runs/bracket-b11-w$w --resolution 256
 done
+
+# 7. ninth session (docs/bracket.md, "Ninth session"): the cpu preset (b20) with denser containment
+#    near the interfaces, the exact penalty, and the generative cpu-gen preset; one thread each
+for args in "b22 --set sampling.band_containment=true" \
+            "b23 --set losses.containment_power=1 --set losses.design_region.weight=600" \
+            "b24 --set sampling.band_containment=true --set losses.interface.weight=600 --set losses.connectedness.weight=0.1" \
+            "b25 --set sampling.band_containment=true --set losses.connectedness.weight=0.1 --set sampling.n_band=2048"; do
+  set -- $args; name=$1; shift
+  $GINN train bracket --preset cpu --out runs/bracket-$name $T1 "$@" > runs/bracket-$name.log 2>&1
+  $GINN eval runs/bracket-$name --resolution 256
+done
+$GINN train bracket --preset cpu-gen --out runs/bracket-g1 $T1 > runs/bracket-g1.log 2>&1
+$GINN eval runs/bracket-g1 --resolution 256

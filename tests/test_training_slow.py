@@ -58,7 +58,8 @@ def test_softplus_generative_obstacle_collapses_without_diversity():
                 "losses": {"interface": {"weight": 100.0}, "design_region": {"weight": 1000.0},
                            "obstacle": {"weight": 1000.0}, "normal": {"weight": 10.0},
                            "connectedness": {"weight": 0.0}, "diversity": {"weight": weight},
-                           "eikonal": {"weight": 1.0}, "containment_slope": 0.0},
+                           "eikonal": {"weight": 1.0}, "containment_slope": 0.0,
+                           "containment_power": 2},
                 "diversity": {"eps": 0.01},
                 "training": {"iterations": 1000, "lr_decay_every": 1000, "threads": 1}}
         task, res = train("obstacle", "quick", over)
