@@ -29,10 +29,21 @@ class Conditioning(nn.Module, abc.ABC):
 
 
 class ConcatConditioning(Conditioning):
-    """The paper's choice: concatenate ``z`` to the point features, ``[h, z]``.
+    """The paper's choice: concatenate ``z`` to the point features, ``[h, scale * z]``.
 
-    For a SIREN this amounts to a latent-dependent bias of the first layer.
+    For a SIREN this amounts to a latent-dependent bias of the first layer. ``scale`` (default 1,
+    the paper's) multiplies the codes before they enter: for a SIREN it is the first layer's
+    frequency along the latent axes relative to the spatial ones (``omega_0^1 * scale``), so a
+    larger scale lets the initial field vary faster from one code to the next without sharpening
+    it in space. It is the same as spreading the codes over an interval ``scale`` times as wide,
+    but keeps the codes the user names.
     """
+
+    def __init__(self, scale: float = 1.0):
+        super().__init__()
+        if not scale > 0:
+            raise ValueError(f"latent scale must be positive, got {scale}")
+        self.scale = float(scale)
 
     def out_features(self, point_features: int, latent_dim: int) -> int:
         return point_features + latent_dim
@@ -40,7 +51,8 @@ class ConcatConditioning(Conditioning):
     def forward(self, h: Tensor, z: Tensor | None) -> Tensor:
         if z is None or z.shape[-1] == 0:
             return h
-        return torch.cat([h, z.to(h.dtype)], dim=-1)
+        z = z.to(h.dtype)
+        return torch.cat([h, z if self.scale == 1.0 else self.scale * z], dim=-1)
 
 
 class PeriodicEncoding(nn.Module):

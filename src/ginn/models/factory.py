@@ -5,7 +5,7 @@ from __future__ import annotations
 from torch import nn
 
 from ..train.config import ModelConfig
-from .base import PeriodicEncoding
+from .base import ConcatConditioning, PeriodicEncoding
 from .mlp import MLP, FourierMLP, ResMLP
 from .siren import Siren
 
@@ -13,12 +13,14 @@ from .siren import Siren
 def build_model(cfg: ModelConfig, in_dim: int, latent_dim: int = 0, out_dim: int = 1) -> nn.Module:
     """A freshly initialised neural field ``(n, in_dim), (n, latent_dim) -> (n,)`` from ``cfg``."""
     enc = PeriodicEncoding() if cfg.periodic else None
+    cond = ConcatConditioning(cfg.latent_scale)
     if cfg.kind == "siren":
-        return Siren(in_dim, cfg.hidden, latent_dim, out_dim, cfg.w0_first, cfg.w0_hidden, encoding=enc)
+        return Siren(in_dim, cfg.hidden, latent_dim, out_dim, cfg.w0_first, cfg.w0_hidden, encoding=enc, conditioning=cond)
     if cfg.kind == "resmlp":
-        return ResMLP(in_dim, cfg.width, cfg.n_blocks, latent_dim, out_dim, cfg.beta, encoding=enc)
+        return ResMLP(in_dim, cfg.width, cfg.n_blocks, latent_dim, out_dim, cfg.beta, encoding=enc, conditioning=cond)
     if cfg.kind == "mlp":
-        return MLP(in_dim, cfg.hidden, latent_dim, out_dim, cfg.activation, cfg.beta, encoding=enc)
+        return MLP(in_dim, cfg.hidden, latent_dim, out_dim, cfg.activation, cfg.beta, encoding=enc, conditioning=cond)
     if cfg.kind == "fourier":
-        return FourierMLP(in_dim, cfg.hidden, latent_dim, out_dim, cfg.sigma, cfg.n_features, cfg.activation, cfg.beta, pre_encoding=enc)
+        return FourierMLP(in_dim, cfg.hidden, latent_dim, out_dim, cfg.sigma, cfg.n_features, cfg.activation, cfg.beta,
+                          pre_encoding=enc, conditioning=cond)
     raise ValueError(f"unknown model kind {cfg.kind!r}")

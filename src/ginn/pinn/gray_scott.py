@@ -38,7 +38,7 @@ from torch import Tensor, nn
 from ..errors import ConfigError
 from ..fields import evaluate, laplacian
 from ..losses.diversity import aggregate
-from ..models import FourierMLP, PeriodicEncoding, Siren
+from ..models import ConcatConditioning, FourierMLP, PeriodicEncoding, Siren
 from ..train.config import LossTerm, RunConfig
 from ..train.task import Task
 from .finite_diff import fourier_shift, grid_derivatives, grid_points, spectral_laplacian
@@ -137,10 +137,11 @@ def build_field(cfg: RunConfig, params: GrayScottParams) -> GrayScottField:
     def one() -> nn.Module:
         if m.kind == "siren":
             return Siren(2, m.hidden, latent_dim=k, w0_first=m.w0_first, w0_hidden=m.w0_hidden,
-                         encoding=PeriodicEncoding())
+                         encoding=PeriodicEncoding(), conditioning=ConcatConditioning(m.latent_scale))
         if m.kind == "fourier":
             return FourierMLP(2, m.hidden, latent_dim=k, sigma=m.sigma, n_features=m.n_features,
-                              activation=m.activation, beta=m.beta, pre_encoding=PeriodicEncoding())
+                              activation=m.activation, beta=m.beta, pre_encoding=PeriodicEncoding(),
+                              conditioning=ConcatConditioning(m.latent_scale))
         raise ConfigError(f"config field 'model.kind': {m.kind!r} is not supported by gray-scott (siren, fourier)")
 
     return GrayScottField(one(), one(), params.u_offset, params.v_offset, params.output_scale)

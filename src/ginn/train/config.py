@@ -28,6 +28,9 @@ class ModelConfig(_Strict):
     n_blocks: int = Field(4, gt=0, description="number of hidden layers (resmlp)")
     w0_first: float = Field(1.0, gt=0, description="SIREN omega_0 of the first layer (omega_0^1)")
     w0_hidden: float = Field(1.0, gt=0, description="SIREN omega_0 of the hidden layers")
+    latent_scale: float = Field(
+        1.0, gt=0, description="multiply the latent codes by this before they enter the network (for a SIREN: "
+        "the first layer's frequency along the latent axes is omega_0^1 * latent_scale); 1 is the paper's")
     activation: str = Field("tanh", description="activation (mlp, fourier)")
     beta: float = Field(1.0, gt=0, description="softplus sharpness (resmlp, softplus activations)")
     sigma: float = Field(1.0, gt=0, description="Fourier-feature scale (fourier)")
