@@ -77,3 +77,12 @@ for args in "b22 --set sampling.band_containment=true" \
 done
 $GINN train bracket --preset cpu-gen --out runs/bracket-g1 $T1 > runs/bracket-g1.log 2>&1
 $GINN eval runs/bracket-g1 --resolution 256
+
+# 8. tenth session (docs/bracket.md, "Tenth session"): a gentler exact penalty, and a second seed
+for args in "b26 --set losses.containment_power=1 --set losses.design_region.weight=150" \
+            "b27 --set seed=1" \
+            "b28 --set seed=1 --set sampling.band_containment=true"; do
+  set -- $args; name=$1; shift
+  $GINN train bracket --preset cpu --out runs/bracket-$name $T1 "$@" > runs/bracket-$name.log 2>&1
+  $GINN eval runs/bracket-$name --resolution 256
+done
