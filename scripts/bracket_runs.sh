@@ -16,6 +16,14 @@ T2="--set losses.design_region.weight=0.1 --set losses.normal.weight=1e-6 --set 
 # (sampling.projection_steps: the config default was 8 when these two ran, 2 since)
 mkdir -p runs
 
+# cpu_run NAME [ARGS...]: train the cpu preset with the overrides ARGS (one thread) into
+# runs/bracket-NAME, then evaluate it
+cpu_run() {
+  local name=$1; shift
+  $GINN train bracket --preset cpu --out runs/bracket-$name $T1 "$@" > runs/bracket-$name.log 2>&1
+  $GINN eval runs/bracket-$name --resolution 256
+}
+
 # 1. cpu model with the Table 2 weights, with and without connectedness (Table 4 col. 4 at cpu scale)
 nohup $GINN train bracket --preset cpu --out runs/bracket-cpu-t2 $T1 $T2 > runs/bracket-cpu-t2.log 2>&1 &
 nohup $GINN train bracket --preset cpu --out runs/bracket-cpu-t2-noconn $T1 $T2 \
@@ -61,28 +69,19 @@ B11="--set losses.containment_slope=1 --set losses.connectedness.start=1200 --se
      --set losses.eikonal.weight=1 --set losses.design_region.start=600 --set losses.design_region.weight=1000
      --set losses.interface.weight=100 --set training.iterations=3600 --set training.lr_decay_every=1200"
 for w in 16 24 32; do
-  $GINN train bracket --preset cpu --out runs/bracket-b11-w$w $T1 $B11 --set model.w0_first=$w > runs/bracket-b11-w$w.log 2>&1
-  $GINN eval runs/bracket-b11-w$w --resolution 256
+  cpu_run b11-w$w $B11 --set model.w0_first=$w
 done
 
 # 7. ninth session (docs/bracket.md, "Ninth session"): the cpu preset (b20) with denser containment
 #    near the interfaces, the exact penalty, and the generative cpu-gen preset; one thread each
-for args in "b22 --set sampling.band_containment=true" \
-            "b23 --set losses.containment_power=1 --set losses.design_region.weight=600" \
-            "b24 --set sampling.band_containment=true --set losses.interface.weight=600 --set losses.connectedness.weight=0.1" \
-            "b25 --set sampling.band_containment=true --set losses.connectedness.weight=0.1 --set sampling.n_band=2048"; do
-  set -- $args; name=$1; shift
-  $GINN train bracket --preset cpu --out runs/bracket-$name $T1 "$@" > runs/bracket-$name.log 2>&1
-  $GINN eval runs/bracket-$name --resolution 256
-done
+cpu_run b22 --set sampling.band_containment=true
+cpu_run b23 --set losses.containment_power=1 --set losses.design_region.weight=600
+cpu_run b24 --set sampling.band_containment=true --set losses.interface.weight=600 --set losses.connectedness.weight=0.1
+cpu_run b25 --set sampling.band_containment=true --set losses.connectedness.weight=0.1 --set sampling.n_band=2048
 $GINN train bracket --preset cpu-gen --out runs/bracket-g1 $T1 > runs/bracket-g1.log 2>&1
 $GINN eval runs/bracket-g1 --resolution 256
 
 # 8. tenth session (docs/bracket.md, "Tenth session"): a gentler exact penalty, and a second seed
-for args in "b26 --set losses.containment_power=1 --set losses.design_region.weight=150" \
-            "b27 --set seed=1" \
-            "b28 --set seed=1 --set sampling.band_containment=true"; do
-  set -- $args; name=$1; shift
-  $GINN train bracket --preset cpu --out runs/bracket-$name $T1 "$@" > runs/bracket-$name.log 2>&1
-  $GINN eval runs/bracket-$name --resolution 256
-done
+cpu_run b26 --set losses.containment_power=1 --set losses.design_region.weight=150
+cpu_run b27 --set seed=1
+cpu_run b28 --set seed=1 --set sampling.band_containment=true
