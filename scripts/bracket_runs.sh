@@ -85,3 +85,8 @@ $GINN eval runs/bracket-g1 --resolution 256
 cpu_run b26 --set losses.containment_power=1 --set losses.design_region.weight=150
 cpu_run b27 --set seed=1
 cpu_run b28 --set seed=1 --set sampling.band_containment=true
+
+# 9. eleventh session (docs/bracket.md, "Eleventh session"): a third more iterations, the change
+#    that met the obstacle's bounds, on seeds 0 and 1
+cpu_run b30 --set training.iterations=4800 --set training.lr_decay_every=1600
+cpu_run b29 --set seed=1 --set training.iterations=4800 --set training.lr_decay_every=1600
