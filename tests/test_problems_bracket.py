@@ -37,14 +37,15 @@ def test_domain_matches_the_paper_bounds():
 
 
 def test_csg_envelope_volume_iou(norm):
-    """Volume IoU >= 0.85 between the CSG envelope and 411_for_envelope.obj (measured ~0.95)."""
+    """Volume IoU >= 0.93 between the CSG envelope and 411_for_envelope.obj (measured 0.954; the
+    first sessions' lugs, extruded along y, gave 0.948 overall and 0.85 around the lugs)."""
     p = load_spec("bracket").build()
     real = MeshRegion(load_mesh(DATA / "411_for_envelope.obj", *norm))
     gen = torch.Generator().manual_seed(0)
     x = sample_box(p.domain, 30_000, gen, dtype=F64)
     a, b = p.design_region.contains(x), real.contains(x)
     iou = (a & b).sum().item() / (a | b).sum().item()
-    assert iou >= 0.85, iou
+    assert iou >= 0.93, iou
     # the mesh's own volume (normalised) agrees with the Monte Carlo estimate of the real envelope
     assert b.double().mean().item() * p.domain.volume() == pytest.approx(real.volume(), rel=0.03)
 
@@ -78,3 +79,25 @@ def test_bracket_from_the_real_meshes_by_path():
     # the mesh design region has the envelope's volume (463,447 mm^3 / 90.0859^3 = 0.6339)
     inside = p.design_region.contains(sample_box(p.domain, 5000, gen, dtype=F64))
     assert inside.double().mean().item() * p.domain.volume() == pytest.approx(0.6339, rel=0.08)
+
+
+def test_csg_lug_faces_lie_on_the_real_lug_faces(norm):
+    """The real envelope's clevis-lug faces (triangles whose normal is within 6 degrees of the pin
+    axis) lie on the CSG envelope's boundary: |SDF| below 1e-3 (0.09 mm) at their centres, on both
+    lugs and both faces, over the whole lug."""
+    p = load_spec("bracket").build()
+    real = load_mesh(DATA / "411_for_envelope.obj", *norm)
+    axis = np.array([-0.030352, 0.999539, 0.0])
+    axis /= np.linalg.norm(axis)
+    c = np.asarray(real.triangles_center)
+    cos = np.asarray(real.face_normals) @ axis
+    counted = 0
+    for centre in ((-0.393047, 0.142688, 0.149553), (-0.383417, -0.174362, 0.149552)):
+        t = (c - np.array(centre)) @ axis
+        for side in (1, -1):
+            faces = (side * cos > 0.995) & (np.abs(t - side * 0.0423) < 0.01)
+            assert faces.sum() > 500
+            sd = p.design_region.sdf(torch.as_tensor(c[faces], dtype=F64))
+            assert sd.abs().max().item() < 1e-3, sd.abs().max().item()
+            counted += int(faces.sum())
+    assert counted > 2000

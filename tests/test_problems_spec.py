@@ -87,6 +87,44 @@ def test_bracket_builtin_is_self_contained(gen):
     assert ((n[~bolt] @ axis).abs() < 1e-5).all()
 
 
+
+PIN_AXIS = (-0.030352, 0.999539, 0.0)
+PIN_CENTRES = ((-0.393047, 0.142688, 0.149553), (-0.383417, -0.174362, 0.149552))
+
+
+def _pin_frame(centre):
+    a = torch.tensor(PIN_AXIS, dtype=F64)
+    a = a / a.norm()
+    u = torch.linalg.cross(a, torch.tensor([0.0, 0.0, 1.0], dtype=F64))
+    u = u / u.norm()
+    return torch.tensor(centre, dtype=F64), a, u, torch.linalg.cross(a, u)
+
+
+@pytest.mark.parametrize("centre", PIN_CENTRES)
+def test_bracket_clevis_lug_faces_are_perpendicular_to_the_pin_axis(centre):
+    """Each lug is 2 x 0.0423 thick along the pin axis, centred on the pin hole (the real envelope's
+    faces, measured from 411_for_envelope.obj), so the pin interface (half length 0.035235) ends
+    7.1e-3 inside both lug faces all round the hole: room for the surface to turn the corner.
+    (The first sessions' lugs were extruded along y, off centre: the interface reached past a face.)"""
+    p = load_spec("bracket").build()
+    c, a, u, w = _pin_frame(centre)
+    th = torch.linspace(0, 2 * torch.pi, 37, dtype=F64)[:-1]
+    for r in (0.11, 0.15, 0.19):
+        ring = r * (torch.cos(th)[:, None] * u + torch.sin(th)[:, None] * w)
+        for side in (1.0, -1.0):
+            for t, inside in ((0.0353, True), (0.0418, True), (0.0428, False), (0.05, False)):
+                q = c + side * t * a + ring
+                assert (p.design_region.contains(q) == inside).all(), (r, side, t)
+            # exact SDF on the face plane near the hole: zero up to rounding
+            sd = p.design_region.sdf(c + side * 0.0423 * a + ring)
+            assert sd.abs().max().item() < 1e-6
+    # and the interface ends where the real one does: 0.035235 from the centre along the axis
+    x, _, comp = _with_comp(p, 20000, torch.Generator().manual_seed(3))
+    k = 4 if centre[1] > 0 else 5
+    t = (x[comp == k] - c) @ a
+    assert t.abs().max().item() == pytest.approx(0.035235, abs=2e-4)
+
+
 def _with_comp(p, n, gen):
     from ginn.geometry import sample_interfaces_with_components
 
