@@ -72,21 +72,47 @@ for w in 16 24 32; do
   cpu_run b11-w$w $B11 --set model.w0_first=$w
 done
 
+# Sections 7 to 10 ran against the eighth session's cpu preset (run b20: omega_0^1 24, envelope
+# 6000 as the quadratic penalty, connectedness 3e-2); B20 pins those settings, the preset having
+# changed since (twelfth session). Sections 1 to 9 ran on the first sessions' clevis lugs (the
+# geometry before commit 44b4ace); sections 1 to 6 against the presets of their sessions.
+B20="--set model.w0_first=24 --set losses.design_region.weight=6000 --set losses.containment_power=2
+     --set losses.connectedness.weight=0.03"
+
 # 7. ninth session (docs/bracket.md, "Ninth session"): the cpu preset (b20) with denser containment
 #    near the interfaces, the exact penalty, and the generative cpu-gen preset; one thread each
-cpu_run b22 --set sampling.band_containment=true
-cpu_run b23 --set losses.containment_power=1 --set losses.design_region.weight=600
-cpu_run b24 --set sampling.band_containment=true --set losses.interface.weight=600 --set losses.connectedness.weight=0.1
-cpu_run b25 --set sampling.band_containment=true --set losses.connectedness.weight=0.1 --set sampling.n_band=2048
+cpu_run b22 $B20 --set sampling.band_containment=true
+cpu_run b23 $B20 --set losses.containment_power=1 --set losses.design_region.weight=600
+cpu_run b24 $B20 --set sampling.band_containment=true --set losses.interface.weight=600 --set losses.connectedness.weight=0.1
+cpu_run b25 $B20 --set sampling.band_containment=true --set losses.connectedness.weight=0.1 --set sampling.n_band=2048
 $GINN train bracket --preset cpu-gen --out runs/bracket-g1 $T1 > runs/bracket-g1.log 2>&1
 $GINN eval runs/bracket-g1 --resolution 256
 
 # 8. tenth session (docs/bracket.md, "Tenth session"): a gentler exact penalty, and a second seed
-cpu_run b26 --set losses.containment_power=1 --set losses.design_region.weight=150
-cpu_run b27 --set seed=1
-cpu_run b28 --set seed=1 --set sampling.band_containment=true
+cpu_run b26 $B20 --set losses.containment_power=1 --set losses.design_region.weight=150
+cpu_run b27 $B20 --set seed=1
+cpu_run b28 $B20 --set seed=1 --set sampling.band_containment=true
 
 # 9. eleventh session (docs/bracket.md, "Eleventh session"): a third more iterations, the change
 #    that met the obstacle's bounds, on seeds 0 and 1
-cpu_run b30 --set training.iterations=4800 --set training.lr_decay_every=1600
-cpu_run b29 --set seed=1 --set training.iterations=4800 --set training.lr_decay_every=1600
+cpu_run b30 $B20 --set training.iterations=4800 --set training.lr_decay_every=1600
+cpu_run b29 $B20 --set seed=1 --set training.iterations=4800 --set training.lr_decay_every=1600
+
+# 10. twelfth session (docs/bracket.md, "Twelfth session"): the corrected clevis lugs; these runs
+#     are relative to the eighth session's cpu preset (B20, above)
+cpu_run b31 $B20
+cpu_run b32 $B20 --set seed=1
+cpu_run b33 $B20 --set sampling.band_containment=true
+cpu_run b34 $B20 --set losses.design_region.weight=12000
+cpu_run b35 $B20 --set losses.containment_power=1 --set losses.design_region.weight=150
+cpu_run b36 $B20 --set losses.containment_power=1 --set losses.design_region.weight=400
+cpu_run b37 $B20 --set losses.containment_power=1 --set losses.design_region.weight=150 --set model.w0_first=32
+cpu_run b38 $B20 --set model.w0_first=32
+cpu_run b39 $B20 --set losses.containment_power=1 --set losses.design_region.weight=60 --set model.w0_first=32
+cpu_run b40 $B20 --set losses.containment_power=1 --set losses.design_region.weight=100 --set model.w0_first=32
+cpu_run b41 $B20 --set losses.containment_power=1 --set losses.design_region.weight=150 --set model.w0_first=32 --set seed=1
+cpu_run b43 $B20 --set losses.containment_power=1 --set losses.design_region.weight=150 --set losses.interface.weight=600
+# the new cpu preset (b40 with connectedness 0.1) on three seeds
+cpu_run b42
+cpu_run b44 --set seed=1
+cpu_run b45 --set seed=2
