@@ -10,8 +10,9 @@ Checks:
   Measured after 300 iterations on this machine: 3e-5 .. 1.3e-3 (the pin holes, the largest
   interfaces, are the slowest); an interface that is not attached keeps values of the order of
   the field's magnitude and fails.
-* the connectedness loss reduces the number of connected components ``b0`` of the shape (same
-  seed, same everything else).
+* the connectedness loss reduces the number of connected components of the shape inside the
+  envelope, ``b0(Omega ∩ E)`` (same seed, same everything else), and does not raise ``b0``.
+* the `cpu` preset as a user runs it meets issue 9's single-shape bounds (about 10 more minutes).
 """
 
 import pytest
@@ -32,7 +33,8 @@ pytestmark = pytest.mark.slow
 REDUCED = {
     "model": {"hidden": [96, 96, 96], "w0_first": 8.0},
     "losses": {"interface": {"weight": 1.0}, "design_region": {"weight": 0.1, "start": 0}, "normal": {"weight": 1e-6},
-               "eikonal": {"weight": 1e-9}, "connectedness": {"start": 0}, "containment_slope": 0.0},
+               "eikonal": {"weight": 1e-9}, "connectedness": {"start": 0}, "containment_slope": 0.0,
+               "containment_power": 2},
     "sampling": {"n_domain": 1024, "n_outside": 512, "n_interface": 512, "n_band": 512, "n_boundary": 128},
     "connectedness": {"every": 5, "grid": 10},
     "training": {"iterations": 300, "lr_decay_every": 150, "checkpoint_every": 1000, "threads": 1},
@@ -76,9 +78,32 @@ def test_all_six_interfaces_are_fitted(runs, which):
 
 
 def test_connectedness_reduces_b0(runs):
-    b0 = {}
+    """The loss joins the components of the shape inside E (``connectedness.restrict_to_design_region``,
+    the default): b0(Omega ∩ E) drops, and b0 of the whole shape does not rise. Measured on the
+    corrected lugs (twelfth session): b0(Omega ∩ E) 1 with, 12 without; b0 2 and 2 (a speck outside
+    E in the run with the loss)."""
+    m = {}
     for which, (task, model) in runs.items():
-        m = evaluate_shapes(model, None, task.problem, resolution=64)["shapes"][0]
-        b0[which] = m["b0"]
-        print(which, {k: m[k] for k in ("b0", "b0_in_design_region", "connected_interfaces_share", "interface_cd1")})
-    assert b0["with"] < b0["without"], b0
+        m[which] = evaluate_shapes(model, None, task.problem, resolution=64)["shapes"][0]
+        print(which, {k: m[which][k] for k in ("b0", "b0_in_design_region", "connected_interfaces_share", "interface_cd1")})
+    assert m["with"]["b0_in_design_region"] < m["without"]["b0_in_design_region"]
+    assert m["with"]["b0"] <= m["without"]["b0"]
+    assert m["with"]["connected_interfaces_share"] >= m["without"]["connected_interfaces_share"]
+
+
+def test_cpu_preset_meets_the_acceptance_bounds():
+    """Issue 9, item 1: the `cpu` preset as a user runs it (one shape, default threads) ends with
+    the part inside the envelope in one piece, all six interfaces on it, CD1 <= 5e-3 and
+    vol_out <= 1e-3 on the 256-cell evaluation grid of `ginn eval`. Measured (docs/bracket.md,
+    twelfth session): seed 0 CD1 4.6e-3, vol_out 9.4e-4 (run b42); about 10 minutes on 2 idle cores.
+    """
+    spec = load_spec("bracket")
+    cfg = resolve_config(spec, "cpu", {})
+    task = make_task(spec, cfg)
+    res = Trainer(task, cfg, None, progress=False).train()
+    m = evaluate_shapes(res.model, None, task.problem, resolution=256)["shapes"][0]
+    print({k: m[k] for k in ("b0", "b0_in_design_region", "connected_interfaces_share", "interface_cd1", "volume_outside")})
+    assert m["b0_in_design_region"] == 1
+    assert m["connected_interfaces_share"] == 1.0
+    assert m["interface_cd1"] <= 5e-3
+    assert m["volume_outside"] <= 1e-3
