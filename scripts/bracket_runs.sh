@@ -116,3 +116,16 @@ cpu_run b43 $B20 --set losses.containment_power=1 --set losses.design_region.wei
 cpu_run b42
 cpu_run b44 --set seed=1
 cpu_run b45 --set seed=2
+# the generative cpu-gen runs g2-g5 (docs/bracket.md, "The generative cpu-gen preset on the
+# corrected lugs"); G1 pins the ninth session's cpu-gen settings they started from, g5 is the preset
+G1="--set model.w0_first=24 --set losses.design_region.weight=6000 --set losses.containment_power=2
+    --set losses.diversity.weight=0.01 --set losses.connectedness.start=1200 --set losses.connectedness.weight=0.03"
+gen_run() {
+  local name=$1; shift
+  $GINN train bracket --preset cpu-gen --out runs/bracket-$name $T1 "$@" > runs/bracket-$name.log 2>&1
+  $GINN eval runs/bracket-$name --resolution 256
+}
+gen_run g2 $G1
+gen_run g3 $G1 --set losses.connectedness.start=600 --set losses.connectedness.weight=0.1
+gen_run g4 --set losses.diversity.weight=0.01
+gen_run g5
