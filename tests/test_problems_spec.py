@@ -88,26 +88,22 @@ def test_bracket_builtin_is_self_contained(gen):
 
 
 
-PIN_AXIS = (-0.030352, 0.999539, 0.0)
-PIN_CENTRES = ((-0.393047, 0.142688, 0.149553), (-0.383417, -0.174362, 0.149552))
-
-
-def _pin_frame(centre):
-    a = torch.tensor(PIN_AXIS, dtype=F64)
-    a = a / a.norm()
+def _pin_frame(pin):
+    """Centre, unit axis and two unit radial directions of a clevis pin interface (float64)."""
+    a = pin.axis.to(F64)
     u = torch.linalg.cross(a, torch.tensor([0.0, 0.0, 1.0], dtype=F64))
     u = u / u.norm()
-    return torch.tensor(centre, dtype=F64), a, u, torch.linalg.cross(a, u)
+    return pin.center.to(F64), a, u, torch.linalg.cross(a, u)
 
 
-@pytest.mark.parametrize("centre", PIN_CENTRES)
-def test_bracket_clevis_lug_faces_are_perpendicular_to_the_pin_axis(centre):
+@pytest.mark.parametrize("k", [4, 5])
+def test_bracket_clevis_lug_faces_are_perpendicular_to_the_pin_axis(k):
     """Each lug is 2 x 0.0423 thick along the pin axis, centred on the pin hole (the real envelope's
     faces, measured from 411_for_envelope.obj), so the pin interface (half length 0.035235) ends
     7.1e-3 inside both lug faces all round the hole: room for the surface to turn the corner.
     (The first sessions' lugs were extruded along y, off centre: the interface reached past a face.)"""
     p = load_spec("bracket").build()
-    c, a, u, w = _pin_frame(centre)
+    c, a, u, w = _pin_frame(p.interfaces[k])
     th = torch.linspace(0, 2 * torch.pi, 37, dtype=F64)[:-1]
     for r in (0.11, 0.15, 0.19):
         ring = r * (torch.cos(th)[:, None] * u + torch.sin(th)[:, None] * w)
@@ -120,7 +116,6 @@ def test_bracket_clevis_lug_faces_are_perpendicular_to_the_pin_axis(centre):
             assert sd.abs().max().item() < 1e-6
     # and the interface ends where the real one does: 0.035235 from the centre along the axis
     x, _, comp = _with_comp(p, 20000, torch.Generator().manual_seed(3))
-    k = 4 if centre[1] > 0 else 5
     t = (x[comp == k] - c) @ a
     assert t.abs().max().item() == pytest.approx(0.035235, abs=2e-4)
 
