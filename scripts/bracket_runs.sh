@@ -129,3 +129,5 @@ gen_run g2 $G1
 gen_run g3 $G1 --set losses.connectedness.start=600 --set losses.connectedness.weight=0.1
 gen_run g4 --set losses.diversity.weight=0.01
 gen_run g5
+# 11. thirteenth session: the connectedness ablation of the cpu preset (Table 4 col. 4 at cpu scale)
+cpu_run b46 --set losses.connectedness.weight=0
