@@ -117,7 +117,10 @@ cpu_run b42
 cpu_run b44 --set seed=1
 cpu_run b45 --set seed=2
 # the generative cpu-gen runs g2-g5 (docs/bracket.md, "The generative cpu-gen preset on the
-# corrected lugs"); G1 pins the ninth session's cpu-gen settings they started from, g5 is the preset
+# corrected lugs"); G1 pins the ninth session's cpu-gen settings they started from (later --set wins)
+# G5 pins the twelfth session's cpu-gen (run g5) for the runs relative to it
+G5="--set training.iterations=3600 --set training.lr_decay_every=1200
+    --set losses.interface.weight=300 --set losses.design_region.weight=100"
 G1="--set model.w0_first=24 --set losses.design_region.weight=6000 --set losses.containment_power=2
     --set losses.diversity.weight=0.01 --set losses.connectedness.start=1200 --set losses.connectedness.weight=0.03"
 gen_run() {
@@ -125,9 +128,19 @@ gen_run() {
   $GINN train bracket --preset cpu-gen --out runs/bracket-$name $T1 "$@" > runs/bracket-$name.log 2>&1
   $GINN eval runs/bracket-$name --resolution 256
 }
-gen_run g2 $G1
-gen_run g3 $G1 --set losses.connectedness.start=600 --set losses.connectedness.weight=0.1
-gen_run g4 --set losses.diversity.weight=0.01
-gen_run g5
+gen_run g2 $G5 $G1
+gen_run g3 $G5 $G1 --set losses.connectedness.start=600 --set losses.connectedness.weight=0.1
+gen_run g4 $G5 --set losses.diversity.weight=0.01
+gen_run g5 $G5
 # 11. thirteenth session: the connectedness ablation of the cpu preset (Table 4 col. 4 at cpu scale)
 cpu_run b46 --set losses.connectedness.weight=0
+# the generative runs of the thirteenth session (docs/bracket.md, "Thirteenth session"), relative to g5
+gen_run g6 $G5 --set model.latent_scale=0.25
+gen_run g7 $G5 --set training.iterations=5400 --set training.lr_decay_every=1800
+gen_run g9 $G5 --set losses.connectedness.start=1200
+G10="--set losses.interface.weight=400 --set losses.design_region.weight=130"
+gen_run g10 $G10
+gen_run g12 $G10 --set seed=1
+# the new cpu-gen preset (g11) on two seeds
+gen_run g11
+gen_run g13 --set seed=1
