@@ -92,17 +92,22 @@ def test_connectedness_reduces_b0(runs):
     assert m["with"]["connected_interfaces_share"] >= m["without"]["connected_interfaces_share"]
 
 
+def _train_preset(name: str):
+    """Train a bracket preset as `ginn train bracket --preset NAME` does (no run directory)."""
+    spec = load_spec("bracket")
+    cfg = resolve_config(spec, name, {})
+    task = make_task(spec, cfg)
+    return task, Trainer(task, cfg, None, progress=False).train().model
+
+
 def test_cpu_preset_meets_the_acceptance_bounds():
     """Issue 9, item 1: the `cpu` preset as a user runs it (one shape, default threads) ends with
     the part inside the envelope in one piece, all six interfaces on it, CD1 <= 5e-3 and
     vol_out <= 1e-3 on the 256-cell evaluation grid of `ginn eval`. Measured (docs/bracket.md,
     twelfth session): seed 0 CD1 4.6e-3, vol_out 9.4e-4 (run b42); about 10 minutes on 2 idle cores.
     """
-    spec = load_spec("bracket")
-    cfg = resolve_config(spec, "cpu", {})
-    task = make_task(spec, cfg)
-    res = Trainer(task, cfg, None, progress=False).train()
-    m = evaluate_shapes(res.model, None, task.problem, resolution=256)["shapes"][0]
+    task, model = _train_preset("cpu")
+    m = evaluate_shapes(model, None, task.problem, resolution=256)["shapes"][0]
     print({k: m[k] for k in ("b0", "b0_in_design_region", "connected_interfaces_share", "interface_cd1", "volume_outside")})
     assert m["b0_in_design_region"] == 1
     assert m["connected_interfaces_share"] == 1.0
@@ -116,13 +121,10 @@ def test_cpu_gen_preset_meets_the_acceptance_bounds():
     (docs/bracket.md, thirteenth session, run g11, seed 0, one thread): CD1 3.9e-3 to 4.5e-3,
     vol_out 7.0e-4 to 8.1e-4, diversity_mean 0.021; about 36 minutes on one thread beside one other
     job."""
-    spec = load_spec("bracket")
-    cfg = resolve_config(spec, "cpu-gen", {})
-    task = make_task(spec, cfg)
-    res = Trainer(task, cfg, None, progress=False).train()
+    task, model = _train_preset("cpu-gen")
     Z = task.latents()
     assert Z.shape == (4, 1)
-    out = evaluate_shapes(res.model, Z, task.problem, resolution=256)
+    out = evaluate_shapes(model, Z, task.problem, resolution=256)
     for m in out["shapes"]:
         print({k: m[k] for k in ("b0", "b0_in_design_region", "connected_interfaces_share", "interface_cd1", "volume_outside")})
     print("diversity_mean", out["diversity_mean"])
