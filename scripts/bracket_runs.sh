@@ -138,9 +138,18 @@ cpu_run b46 --set losses.connectedness.weight=0
 gen_run g6 $G5 --set model.latent_scale=0.25
 gen_run g7 $G5 --set training.iterations=5400 --set training.lr_decay_every=1800
 gen_run g9 $G5 --set losses.connectedness.start=1200
-G10="--set losses.interface.weight=400 --set losses.design_region.weight=130"
+# G11 pins the thirteenth session's cpu-gen schedule (run g11); the preset now runs 8000 iterations
+G11="--set training.iterations=5400 --set training.lr_decay_every=1800"
+G10="$G11 --set losses.interface.weight=400 --set losses.design_region.weight=130"
 gen_run g10 $G10
 gen_run g12 $G10 --set seed=1
-# the new cpu-gen preset (g11) on two seeds
-gen_run g11
-gen_run g13 --set seed=1
+# the thirteenth session's cpu-gen preset (g11) on two seeds
+gen_run g11 $G11
+gen_run g13 $G11 --set seed=1
+# 12. fourteenth session (docs/bracket.md, "Fourteenth session"): a stronger interface and 6000
+# iterations on two seeds, then the new cpu-gen preset (8000 iterations) as a user runs it
+gen_run g14s0 --set losses.interface.weight=600 --set training.iterations=6000 --set training.lr_decay_every=2000
+gen_run g14s1 --set losses.interface.weight=600 --set training.iterations=6000 --set training.lr_decay_every=2000 --set seed=1
+# default threads (2 here): the slow test test_cpu_gen_preset_meets_the_acceptance_bounds is seed 0
+$GINN train bracket --preset cpu-gen --out runs/bracket-g15s1 --seed 1 --quiet > runs/bracket-g15s1.log 2>&1
+$GINN eval runs/bracket-g15s1 --resolution 256
