@@ -153,3 +153,6 @@ gen_run g14s1 --set losses.interface.weight=600 --set training.iterations=6000 -
 # default threads (2 here): the slow test test_cpu_gen_preset_meets_the_acceptance_bounds is seed 0
 $GINN train bracket --preset cpu-gen --out runs/bracket-g15s1 --seed 1 --quiet > runs/bracket-g15s1.log 2>&1
 $GINN eval runs/bracket-g15s1 --resolution 256
+# the same lengthening on the single-shape cpu preset (worse CD1; the seed-1 speck stays)
+cpu_run b47s0 --set training.iterations=5400 --set training.lr_decay_every=1800
+cpu_run b47s1 --set training.iterations=5400 --set training.lr_decay_every=1800 --set seed=1
