@@ -32,11 +32,11 @@ from dataclasses import dataclass
 
 import torch
 
+from ginn.config import ConnectednessConfig
 from ginn.fields import evaluate
 from ginn.geometry.base import Box, Region
 from ginn.models import Siren
 from ginn.topology import b0, make_connectedness_loss
-from ginn.train.config import ConnectednessConfig
 
 
 @dataclass(frozen=True)
@@ -47,7 +47,7 @@ class Clock:
     wall: float
     cpu: float
 
-    def __sub__(self, other: "Clock") -> "Clock":
+    def __sub__(self, other: Clock) -> Clock:
         return Clock(self.wall - other.wall, self.cpu - other.cpu)
 
     def __str__(self) -> str:

@@ -32,16 +32,15 @@ import torch.multiprocessing as mp
 
 
 def _setup(args):
+    from ginn.config import parse_set
     from ginn.problems import load_spec
-    from ginn.train.config import parse_set
-    from ginn.train.registry import resolve_config
 
     spec = load_spec("obstacle")
     over = {"latents": {"n_shapes": args.shapes}, "training": {"iterations": args.warmup + args.iterations,
                                                                 "checkpoint_every": 10**9, "threads": 1}}
     if args.no_connectedness:
         over["losses"] = {"connectedness": {"weight": 0.0}}
-    return spec, resolve_config(spec, args.preset, over, parse_set(args.sets))
+    return spec, spec.config(args.preset, over, parse_set(args.sets))
 
 
 def _time(trainer, args) -> tuple[float, torch.Tensor]:
@@ -61,8 +60,8 @@ def _time(trainer, args) -> tuple[float, torch.Tensor]:
 def _rank(rank: int, world: int, port: int, args, out: str) -> None:
     os.environ.update(RANK=str(rank), WORLD_SIZE=str(world), LOCAL_RANK=str(rank), MASTER_ADDR="127.0.0.1", MASTER_PORT=str(port))
     torch.set_num_threads(1)
+    from ginn.tasks import make_task
     from ginn.train.distributed import init_distributed, shutdown
-    from ginn.train.registry import make_task
     from ginn.train.trainer import Trainer
 
     ctx = init_distributed("cpu")
@@ -85,7 +84,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     torch.set_num_threads(1)
 
-    from ginn.train.registry import make_task
+    from ginn.tasks import make_task
     from ginn.train.trainer import Trainer
 
     spec, cfg = _setup(args)

@@ -137,7 +137,8 @@ def main() -> None:
     print(f"engine   : {t_engine:.3f} s/step  ({flops / 1e9:.1f} GFLOP counted, {gflops:.1f} GFLOP/s)")
     print(f"engine without the SIREN fast path (autograd only): {t_autograd:.3f} s/step")
     print(f"torch.func baseline: {t_base:.3f} s/step")
-    print(f"speedup engine vs torch.func: {t_base / t_engine:.2f}x; engine at {gflops:.1f} GFLOP/s = {100 * gflops / peak:.0f}% of measured matmul peak")
+    print(f"speedup engine vs torch.func: {t_base / t_engine:.2f}x; "
+          f"engine at {gflops:.1f} GFLOP/s = {100 * gflops / peak:.0f}% of measured matmul peak")
 
 
 if __name__ == "__main__":

@@ -27,7 +27,7 @@ import time
 import skimage.measure  # noqa: F401  (imported up front: the timings measure the metrics, not imports)
 import torch
 
-from ginn.evaluation import evaluate_shapes
+from ginn.eval.shapes import evaluate_shapes
 from ginn.geometry.base import Box, Interface, Region
 from ginn.models import Siren
 from ginn.problems.problem import Problem

@@ -7,7 +7,6 @@ every preset for two iterations is ``tests/test_presets_smoke.py``.
 import pytest
 
 from ginn.problems import load_spec
-from ginn.train.registry import resolve_config
 
 PAPER = {  # Table 2, JEB (3D) column
     "interface": 1.0,
@@ -28,7 +27,7 @@ def test_presets_exist(spec):
 
 
 def test_gpu_preset_is_table_2(spec):
-    c = resolve_config(spec, "gpu")
+    c = spec.config("gpu")
     assert c.model.kind == "siren" and c.model.hidden == [256] * 5
     assert c.model.w0_first == 8.0
     assert (c.latents.n_shapes, c.latents.dim, c.latents.low, c.latents.high) == (4, 1, -0.1, 0.1)
@@ -41,7 +40,7 @@ def test_gpu_preset_is_table_2(spec):
 
 
 def test_gpu_preset_samples_a_band_and_keeps_strain_off_the_interfaces(spec):
-    c = resolve_config(spec, "gpu")
+    c = spec.config("gpu")
     p = spec.build()
     assert p.interface_band == 0.05 and c.sampling.n_band > 0
     assert c.sampling.strain_interface_clearance > 0
@@ -49,7 +48,7 @@ def test_gpu_preset_samples_a_band_and_keeps_strain_off_the_interfaces(spec):
 
 
 def test_gpu_single_is_gpu_with_one_shape(spec):
-    g, s = resolve_config(spec, "gpu"), resolve_config(spec, "gpu-single")
+    g, s = spec.config("gpu"), spec.config("gpu-single")
     assert s.latents.n_shapes == 1 and s.losses.diversity.weight == 0.0
     assert s.model == g.model and s.sampling == g.sampling and s.training == g.training
     for name in PAPER:
@@ -57,26 +56,26 @@ def test_gpu_single_is_gpu_with_one_shape(spec):
 
 
 def test_cpu_presets_are_smaller_than_gpu(spec):
-    g = resolve_config(spec, "gpu")
+    g = spec.config("gpu")
     n_params = lambda h: sum((a + 1) * b for a, b in zip([4, *h], [*h, 1]))  # noqa: E731
     for name, shapes in (("cpu", 1), ("cpu-gen", 4)):
-        c = resolve_config(spec, name)
+        c = spec.config(name)
         assert c.latents.n_shapes == shapes
         assert n_params(c.model.hidden) < n_params(g.model.hidden) / 5
         assert c.sampling.n_domain < g.sampling.n_domain and c.sampling.n_band > 0
         assert c.connectedness.every > 1 and c.connectedness.grid < g.connectedness.grid
         assert c.losses.connectedness.weight > 0 and c.sampling.strain_interface_clearance > 0
-    assert resolve_config(spec, "cpu").losses.diversity.weight == 0.0
-    assert resolve_config(spec, "cpu-gen").losses.diversity.weight > 0
+    assert spec.config("cpu").losses.diversity.weight == 0.0
+    assert spec.config("cpu-gen").losses.diversity.weight > 0
 
 
 def test_ablations_from_set(spec):
     """Table 4's ablations are --set overrides of the presets."""
-    from ginn.train.config import parse_set
+    from ginn.config import parse_set
 
     over = parse_set(["losses.connectedness.weight=0", "model.w0_first=6.5", "losses.strain.weight=0",
                       "losses.normal.weight=0", "losses.eikonal.weight=0", "losses.diversity.weight=0"])
-    c = resolve_config(spec, "gpu", over)
+    c = spec.config("gpu", over)
     assert c.model.w0_first == 6.5
     assert all(getattr(c.losses, k).weight == 0 for k in ("connectedness", "strain", "normal", "eikonal", "diversity"))
     assert c.losses.interface.weight == 1.0 and c.model.hidden == [256] * 5

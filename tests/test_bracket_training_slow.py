@@ -19,10 +19,10 @@ Checks:
 import pytest
 import torch
 
-from ginn.evaluation import evaluate_shapes
+from ginn.eval.shapes import evaluate_shapes
 from ginn.geometry import sample_interfaces_with_components
 from ginn.problems import load_spec
-from ginn.train.registry import make_task, resolve_config
+from ginn.tasks import make_task
 from ginn.train.trainer import Trainer
 
 pytestmark = pytest.mark.slow
@@ -44,7 +44,7 @@ REDUCED = {
 
 def _train(tmp_path, name, conn_weight):
     spec = load_spec("bracket")
-    cfg = resolve_config(spec, "cpu", REDUCED, {"losses": {"connectedness": {"weight": conn_weight}}})
+    cfg = spec.config("cpu", REDUCED, {"losses": {"connectedness": {"weight": conn_weight}}})
     task = make_task(spec, cfg)
     res = Trainer(task, cfg, tmp_path / name, progress=False).train()
     assert res.status == "completed" and res.step == 300
@@ -95,7 +95,7 @@ def test_connectedness_reduces_b0(runs):
 def _train_preset(name: str):
     """Train a bracket preset as `ginn train bracket --preset NAME` does (no run directory)."""
     spec = load_spec("bracket")
-    cfg = resolve_config(spec, name, {})
+    cfg = spec.config(name, {})
     task = make_task(spec, cfg)
     return task, Trainer(task, cfg, None, progress=False).train().model
 

@@ -16,8 +16,8 @@ import torch
 import torch.multiprocessing as mp
 
 from ginn.problems import load_spec
+from ginn.tasks import make_task
 from ginn.train.checkpoint import load_checkpoint
-from ginn.train.registry import make_task, resolve_config
 from ginn.train.trainer import Trainer
 
 SMALL = {
@@ -38,7 +38,7 @@ def _free_port() -> int:
 
 def _config(extra=None):
     spec = load_spec("obstacle")
-    return spec, resolve_config(spec, None, SMALL, extra or {})
+    return spec, spec.config(None, SMALL, extra or {})
 
 
 def _weights(model) -> torch.Tensor:
@@ -55,7 +55,7 @@ def _worker(rank: int, world: int, port: int, run_dir: str, iterations: list[int
     spec, cfg = _config(extra)
     losses = []
     for i, n in enumerate(iterations):  # several entries: stop, then resume from the checkpoint
-        c = resolve_config(spec, None, SMALL, extra, {"training": {"iterations": n}})
+        c = spec.config(None, SMALL, extra, {"training": {"iterations": n}})
         tr = Trainer(make_task(spec, c), c, run_dir, progress=False, dist=ctx)
         if i > 0:
             assert tr.resume()

@@ -10,7 +10,7 @@ import torch
 import trimesh
 
 from _shapes import Disk
-from ginn.export import export_contours, export_mesh, export_shapes, latent_label, shape_boundary
+from ginn.extract.export import export_contours, export_mesh, export_shapes, latent_label, shape_boundary
 from ginn.fields import as_field
 from ginn.geometry.base import Box
 

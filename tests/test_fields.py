@@ -186,8 +186,7 @@ def test_siren_fast_path_equals_autograd(hessian_at, block, monkeypatch, gen):
     """The SIREN's hand-written value-and-gradient pass gives the autograd numbers: f, grad f and
     the parameter gradients of a loss of both (float64, latents, omega_0 != 1, in blocks of 7
     rows as well as in one block)."""
-    from ginn.models import Siren
-    from ginn.models import siren_grad
+    from ginn.models import Siren, siren_grad
 
     if block is not None:
         monkeypatch.setattr(siren_grad, "block_rows", lambda width: block)

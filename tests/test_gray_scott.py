@@ -7,8 +7,10 @@ import pytest
 import torch
 from torch import nn
 
+from ginn.config import GSParams, build_config
 from ginn.errors import ConfigError
-from ginn.pinn.gray_scott import (
+from ginn.eval.gray_scott import translation_invariant_distance, verify_fields
+from ginn.tasks.gray_scott import (
     GrayScottField,
     GrayScottTask,
     parse_params,
@@ -16,9 +18,6 @@ from ginn.pinn.gray_scott import (
     sample_grid,
     shift_invariant_sq_distance,
 )
-from ginn.pinn.solver import GSParams
-from ginn.pinn.verify import translation_invariant_distance, verify_fields
-from ginn.train.config import build_config
 
 
 def _cfg(**params):
@@ -26,7 +25,7 @@ def _cfg(**params):
         "problem": "gray-scott",
         "model": {"kind": "siren", "hidden": [16, 8], "w0_first": 1.0},
         "latents": {"n_shapes": 3, "dim": 2},
-        "params": {"grid": 32, **params},
+        "params": {"kind": "gray-scott", "grid": 32, **params},
     })
 
 
@@ -160,7 +159,7 @@ def test_finalize_and_verify_run_write_files(tmp_path):
     assert {"u_00.npy", "v_02.npy", "v_01.png", "patterns_v.png", "interpolation_v.png"} <= names
     v0 = np.load(tmp_path / "patterns" / "v_00.npy")
     assert v0.shape == (16, 16)
-    from ginn.pinn.verify import Thresholds, verify_run
+    from ginn.eval.gray_scott import Thresholds, verify_run
 
     out = verify_run(model, task.latents(), task.cfg.params, resolution=16, out_dir=tmp_path,
                      thresholds=Thresholds(t_final=10.0))
@@ -173,13 +172,13 @@ def test_finalize_and_verify_run_write_files(tmp_path):
 @pytest.mark.slow
 def test_quick_preset_acceptance(tmp_path):
     """The issue's acceptance: the quick preset gives >= 8 latents passing all four checks."""
-    from ginn.pinn.verify import verify_run
+    from ginn.eval.gray_scott import verify_run
     from ginn.problems.loader import get_spec
-    from ginn.train.registry import make_task, resolve_config
+    from ginn.tasks import make_task
     from ginn.train.trainer import Trainer
 
     spec = get_spec("gray-scott")
-    cfg = resolve_config(spec, "quick")
+    cfg = spec.config("quick")
     task = make_task(spec, cfg)
     result = Trainer(task, cfg, tmp_path, progress=False).train()
     out = verify_run(result.model, task.latents(), cfg.params, resolution=256, out_dir=tmp_path)
@@ -215,7 +214,7 @@ def test_flow_gradient_is_the_pde_time_derivative():
 
 
 def test_interpolation_latents_run_between_the_first_two_codes():
-    from ginn.pinn.plots import interpolation_latents
+    from ginn.viz.gray_scott import interpolation_latents
 
     Z = torch.tensor([[-1.0, 0.0], [1.0, 2.0], [5.0, 5.0]], dtype=torch.float64)
     I = interpolation_latents(Z, 5)
@@ -225,7 +224,7 @@ def test_interpolation_latents_run_between_the_first_two_codes():
 
 def test_fourier_model_and_bad_model_kind():
     cfg = build_config({"problem": "gray-scott", "model": {"kind": "fourier", "hidden": [16, 8], "sigma": 3.0, "n_features": 8},
-                        "latents": {"n_shapes": 2, "dim": 1}, "params": {"grid": 16}})
+                        "latents": {"n_shapes": 2, "dim": 1}, "params": {"kind": "gray-scott", "grid": 16}})
     task = GrayScottTask(cfg, torch.device("cpu"), torch.float32)
     model = task.build_model()
     x = torch.rand(5, 2)
@@ -243,8 +242,9 @@ def test_step_target_is_reused_and_shifted_for_step_reuse_iterations():
     """``residual_gradient = step`` with ``step_reuse = 3``: the target computed at iteration 0 is
     reused (moved by an exact Fourier shift to the new grid offset) at iterations 1 and 2, and
     recomputed from the current state at iteration 3; with ``step_reuse = 1`` it is always fresh."""
-    from ginn.pinn.finite_diff import fourier_shift, grid_points
-    from ginn.pinn.gray_scott import pseudo_time_step
+    from ginn.extract.grid import periodic_points as grid_points
+    from ginn.tasks.gray_scott import pseudo_time_step
+    from ginn.tasks.gray_scott.finite_diff import fourier_shift
 
     cfg = _cfg(residual_gradient="step", step_reuse=3, step_count=5, grid=16)
     task = GrayScottTask(cfg, torch.device("cpu"), torch.float64)
@@ -287,7 +287,7 @@ def test_step_sobolev_adds_the_diffusion_weighted_misfit():
         T[:, 1] -= d
         return T
 
-    from ginn.pinn.finite_diff import grid_points
+    from ginn.extract.grid import periodic_points as grid_points
 
     task._step_target = target
     out = _terms(task, model)
@@ -301,7 +301,7 @@ def test_fine_grid_takes_over_from_fine_grid_from():
     from iteration 2 on 16². Checked through the loss: for ``v = 0.2 + 0.05 sin(2 pi (5 x + y))``
     (5 cycles: aliased on 8², exact on 16²) the logged mean(R^2) equals the residual recomputed on the
     grid of that iteration, and the two grids give different values."""
-    from ginn.pinn.solver import residuals
+    from ginn.eval.reference.gray_scott import residuals
 
     task = GrayScottTask(_cfg(derivatives="spectral", grid=8, fine_grid=16, fine_grid_from=2, D_v=1e-3),
                         torch.device("cpu"), torch.float64)
@@ -356,7 +356,7 @@ def test_resume_mid_target_is_bitwise_identical(tmp_path):
             "problem": "gray-scott", "seed": 1,
             "model": {"kind": "siren", "hidden": [8, 4], "w0_first": 5.0},
             "latents": {"n_shapes": 2, "dim": 1},
-            "params": {"grid": 8, "derivatives": "spectral", "residual_gradient": "step", "step_reuse": 4,
+            "params": {"kind": "gray-scott", "grid": 8, "derivatives": "spectral", "residual_gradient": "step", "step_reuse": 4,
                        "step_count": 3, "D_v": 1e-3},
             "training": {"iterations": iterations, "lr": 1e-3, "checkpoint_every": 100, "log_every": 100},
         })

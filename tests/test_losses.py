@@ -5,7 +5,6 @@ import math
 import pytest
 import torch
 
-from ginn import fields
 from ginn.fields import as_field, evaluate
 from ginn.levelset import project_to_zero
 from ginn.losses import constraints as C

@@ -7,12 +7,12 @@ import pytest
 import torch
 
 from _shapes import Circle, Disk, Rect, VerticalSegments, union
-from ginn.evaluation import evaluate_shapes, format_comparison_table, format_table
+from ginn.eval.metrics import METRIC_NAMES, diversity_from_matrix, diversity_mean, extract_shape
+from ginn.eval.shapes import evaluate_shapes, format_comparison_table, format_table
+from ginn.extract.grid import make_grid
 from ginn.fields import as_field
 from ginn.geometry.base import Box
-from ginn.metrics import METRIC_NAMES, diversity_from_matrix, diversity_mean, extract_shape
 from ginn.problems.problem import Problem
-from ginn.surface import make_grid
 
 BOX2 = Box((-1.0, -1.0), (1.0, 1.0))
 E2 = Rect((-0.9, -0.9), (0.9, 0.9))  # vol(E) = 3.24
@@ -104,7 +104,7 @@ def test_boundary_overlap_counts_a_shape_boundary_coinciding_with_dE():
 def test_boundary_overlap_independent_of_where_dE_lies_between_nodes():
     # h = 1/128; the sides x = +-a lie on grid nodes, the sides y = +-b halfway between nodes:
     # the hat weights give both the same weight per length (a hard band |sdf| < h would not).
-    from ginn.metrics import boundary_overlap, extract_shape, prepare_context
+    from ginn.eval.metrics import boundary_overlap, extract_shape, prepare_context
 
     a, b = 1 - 12 / 128, 1 - 51.5 / 128
     P = Problem("t", BOX2, design_region=Rect((-a, -b), (a, b)))

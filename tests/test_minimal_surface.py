@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from ginn.reference.minimal_surface import (
+from ginn.eval.reference.minimal_surface import (
     PLATEAU_AREA_ESTIMATE,
     annulus_minimal_surface,
     catenoid_area,

@@ -7,17 +7,10 @@ import pytest
 import torch
 from torch import nn
 
+from ginn.config import build_config
 from ginn.errors import ConfigError
-from ginn.mirror import (
-    MirrorTask,
-    evaluate_mirror,
-    exact_height,
-    focus_distance,
-    parse_mirror_params,
-    reflected_direction,
-    reflection_residual,
-)
-from ginn.train.config import build_config
+from ginn.eval.mirror import evaluate_mirror, focus_distance, reflected_direction, reflection_residual
+from ginn.tasks.mirror import MirrorTask, parse_mirror_params
 
 
 class Poly(nn.Module):
@@ -33,7 +26,7 @@ class Poly(nn.Module):
 
 
 def _task(**params):
-    cfg = build_config({"model": {"kind": "mlp", "hidden": [40, 40]}, "params": params})
+    cfg = build_config({"model": {"kind": "mlp", "hidden": [40, 40]}, "params": {"kind": "mirror", **params}})
     return MirrorTask(cfg, "cpu", torch.float64)
 
 
@@ -96,7 +89,7 @@ def test_params_validation():
 
 
 def test_stratified_samples_cover_aperture(gen):
-    from ginn.mirror import sample_rays
+    from ginn.tasks.mirror import sample_rays
 
     p = parse_mirror_params({"n_samples": 64})
     x = sample_rays(p, 64, gen, "cpu", torch.float64)
@@ -118,11 +111,11 @@ def test_finalize_writes_profile_and_figure(tmp_path):
 def _train(F: float, seed: int = 0) -> tuple[dict, float]:
     """The preset's setting with a plain Adam loop (same schedule as the trainer's)."""
     from ginn.problems.loader import load_spec
-    from ginn.train.registry import make_task, resolve_config
+    from ginn.tasks import make_task
 
     torch.set_num_threads(1)
     spec = load_spec("mirror")
-    cfg = resolve_config(spec, None, {"params": {"focus": F}, "seed": seed})
+    cfg = spec.config(None, {"params": {"focus": F}, "seed": seed})
     task = make_task(spec, cfg)
     torch.manual_seed(seed)
     model = task.build_model()

@@ -1,8 +1,8 @@
 import pytest
 import torch
 
-from ginn.models import MLP, FourierMLP, PeriodicEncoding, ResMLP, Siren
 from ginn.fields import evaluate
+from ginn.models import MLP, FourierMLP, PeriodicEncoding, ResMLP, Siren
 
 
 def make_models(d, k, out=1):
@@ -138,8 +138,8 @@ def test_siren_sine_derivatives_of_every_order_match_autograd():
 def test_latent_scale_equals_codes_spread_by_the_same_factor():
     """``model.latent_scale = s`` gives exactly the field of the unscaled model at codes ``s * z``
     (same initial weights), for every model kind, in value and in the SIREN's fast gradient path."""
+    from ginn.config import ModelConfig
     from ginn.models.factory import build_model
-    from ginn.train.config import ModelConfig
 
     x = torch.rand(17, 2, dtype=torch.float64) * 2 - 1
     z = torch.linspace(-1, 1, 17, dtype=torch.float64)[:, None]
@@ -158,8 +158,8 @@ def test_latent_scale_equals_codes_spread_by_the_same_factor():
 def test_latent_scale_must_be_positive():
     from pydantic import ValidationError
 
+    from ginn.config import ModelConfig
     from ginn.models import ConcatConditioning
-    from ginn.train.config import ModelConfig
 
     with pytest.raises(ValidationError, match="latent_scale"):
         ModelConfig(latent_scale=0.0)

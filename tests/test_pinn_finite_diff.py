@@ -5,12 +5,12 @@ import math
 import pytest
 import torch
 
-from ginn.pinn.finite_diff import (
+from ginn.extract.grid import periodic_points as grid_points
+from ginn.tasks.gray_scott.finite_diff import (
     fd_gradient,
     fd_gradient_symbol,
     fd_laplacian,
     fd_laplacian_symbol,
-    grid_points,
     spectral_gradient,
     spectral_laplacian,
 )
@@ -74,7 +74,7 @@ def test_batched_shapes():
 def test_fourier_shift_resamples_trig_fields_exactly():
     """``fourier_shift`` of samples of ``sin(2 pi (3 x + 5 y)) + cos(2 pi 7 x)`` on the grid with
     offset ``o`` equals the samples on the grid with offset ``o + delta``, to 1e-12 (float64)."""
-    from ginn.pinn.finite_diff import fourier_shift
+    from ginn.tasks.gray_scott.finite_diff import fourier_shift
 
     def field(X):
         return torch.sin(2 * math.pi * (3 * X[..., 0] + 5 * X[..., 1])) + torch.cos(2 * math.pi * 7 * X[..., 0])

@@ -3,15 +3,9 @@
 import numpy as np
 import torch
 
-from ginn.plateau import (
-    chamfer_cd2,
-    clip_mesh,
-    evaluate_plateau,
-    hull_halfspaces,
-    render_plateau,
-    write_plateau_results,
-)
-from ginn.reference.minimal_surface import disk_minimal_surface, plateau_polygon, polygon_curve
+from ginn.eval.plateau import chamfer_cd2, clip_mesh, evaluate_plateau, hull_halfspaces
+from ginn.eval.reference.minimal_surface import disk_minimal_surface, plateau_polygon, polygon_curve
+from ginn.viz.plateau import render_plateau, write_plateau_results
 
 
 def _grid_mesh(lo, hi, n, z=0.0):
@@ -84,7 +78,7 @@ def test_plane_spanning_planar_square_scores_zero():
 def test_offset_plane_in_the_cube():
     """Gamma = the Plateau polygon (hull: the unit cube); the field's zero set is the plane z = 0.52 and
     the reference the square z = 0.5: clipped area 1, CD2 = sqrt(2) 0.02, kappa_H = 0."""
-    from ginn.reference.minimal_surface import MinimalSurface, MinimizeInfo
+    from ginn.eval.reference.minimal_surface import MinimalSurface, MinimizeInfo
 
     V, F = _grid_mesh(0, 1, 8, z=0.5)
     ref = MinimalSurface(V, F, np.zeros(len(V), dtype=bool), 1.0, MinimizeInfo())

@@ -8,8 +8,8 @@ import torch
 
 from _shapes import Disk, Rect, VerticalSegments
 from ginn.geometry.base import Box
-from ginn.plot import interpolation_latents, plot_loss_curves, plot_run, plot_superposition
 from ginn.problems.problem import Problem
+from ginn.viz.plot import interpolation_latents, plot_loss_curves, plot_run, plot_superposition
 
 P2 = Problem(
     "obstacle-like",
@@ -30,7 +30,7 @@ def is_png(p):
 
 
 def test_loss_series_order():
-    from ginn.plot import _series_order
+    from ginn.viz.plot import _series_order
 
     keys = ["lr", "_boundary_converged", "interface", "total", "eikonal", "grad_norm"]
     assert sorted(keys, key=_series_order) == ["total", "eikonal", "interface", "grad_norm", "lr", "_boundary_converged"]

@@ -10,7 +10,7 @@ import pytest
 import torch
 
 from ginn.problems import list_problems, load_spec
-from ginn.train.registry import make_task, resolve_config
+from ginn.tasks import make_task
 from ginn.train.trainer import Trainer
 
 SMALL_SAMPLING = {"n_domain": 256, "n_outside": 128, "n_obstacle": 32, "n_interface": 64, "n_band": 0, "n_boundary": 32}
@@ -31,7 +31,7 @@ def test_preset_trains_two_iterations(name, preset, tmp_path):
     over = {"training": {"iterations": 2, "checkpoint_every": 1}}
     if spec.kind == "shape":
         over["sampling"] = SMALL_SAMPLING
-    cfg = resolve_config(spec, preset, over)
+    cfg = spec.config(preset, over)
     task = make_task(spec, cfg)
     tr = Trainer(task, cfg, tmp_path, progress=False)
     res = tr.train()

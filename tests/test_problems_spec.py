@@ -8,10 +8,10 @@ import pytest
 import torch
 import trimesh
 
+from ginn.config import RunConfig
 from ginn.errors import ConfigError, SpecError
 from ginn.geometry import Box, sample_band, sample_box, sample_inside, sample_interfaces, sample_outside
 from ginn.problems import get_spec, list_problems, load_spec, parse_spec, problem_summaries, spec_text
-from ginn.train.config import RunConfig
 
 F64 = torch.float64
 REPO = Path(__file__).resolve().parents[1]

@@ -4,7 +4,7 @@ import pytest
 import torch
 
 from ginn.problems import load_spec
-from ginn.train.registry import make_task, resolve_config
+from ginn.tasks import make_task
 
 
 class _FnField(torch.nn.Module):
@@ -27,7 +27,7 @@ def _depth_outside_obstacle_region(x):
 
 def test_every_shape_sees_every_interface():
     spec = load_spec("obstacle")
-    cfg = resolve_config(spec, "demo", {"sampling": {"n_interface": 64}})
+    cfg = spec.config("demo", {"sampling": {"n_interface": 64}})
     task = make_task(spec, cfg)
     gen = torch.Generator().manual_seed(0)
     pts = task.sample(4, {"interface", "normal"}, gen)
@@ -45,7 +45,7 @@ def test_containment_power_reaches_the_losses():
     """``losses.containment_power = 1``: the design-region and obstacle terms of a training step
     are the mean of |min(0, f)| over their samples (checked against the field's own values)."""
     spec = load_spec("obstacle")
-    cfg = resolve_config(spec, "single", {"losses": {"containment_power": 1}})
+    cfg = spec.config("single", {"losses": {"containment_power": 1}})
     task = make_task(spec, cfg)
     torch.manual_seed(0)
     model = task.build_model()
@@ -68,7 +68,7 @@ def test_containment_slope_is_exact_for_sdfs_and_catches_flat_fields():
     paper's loss accepts: f > 0 outside E) is penalised by the mean of (d_E(x) - 1e-3)^2 over the
     samples outside E; inside the obstacle the floor is the depth into it."""
     spec = load_spec("obstacle")
-    cfg = resolve_config(spec, "single", {"losses": {"containment_slope": 1.0}})
+    cfg = spec.config("single", {"losses": {"containment_slope": 1.0}})
     task = make_task(spec, cfg)
     active = {"design_region", "obstacle"}
 
@@ -93,7 +93,7 @@ def test_diversity_interface_clearance_drops_points_near_interfaces():
     leave the shape distance. Distances to the obstacle's interfaces (x = +-0.9, |y| <= 0.4) are
     exact here, and with a clearance larger than the domain no point is left, so the term vanishes."""
     spec = load_spec("obstacle")
-    cfg = resolve_config(spec, "demo", {})
+    cfg = spec.config("demo", {})
     task = make_task(spec, cfg)
     pts = torch.tensor([[-0.85, 0.0], [-0.75, 0.1], [0.89, 0.39], [0.0, 0.0], [0.9, 0.45]])
     # distances: 0.05, 0.15, 0.01, 0.9, 0.05 (to the end point (0.9, 0.4))
@@ -107,7 +107,7 @@ def test_diversity_interface_clearance_drops_points_near_interfaces():
     model, active = Disks(), {"diversity"}
 
     def term(clearance):
-        t = make_task(spec, resolve_config(spec, "demo", {"diversity": {"interface_clearance": clearance}}))
+        t = make_task(spec, spec.config("demo", {"diversity": {"interface_clearance": clearance}}))
         return t.loss_terms(model, 0, active, torch.Generator().manual_seed(1))["diversity"].item()
 
     full, near, none_left = term(0.0), term(0.25), term(10.0)
@@ -123,7 +123,7 @@ def test_containment_margin_shifts_the_floor_outwards():
     ``max(0, d_E - m)`` costs nothing (and something without the margin)."""
     spec = load_spec("obstacle")
     m = 0.03
-    cfg = resolve_config(spec, "single", {"losses": {"containment_slope": 1.0, "containment_margin": m}})
+    cfg = spec.config("single", {"losses": {"containment_slope": 1.0, "containment_margin": m}})
     task = make_task(spec, cfg)
     active = {"design_region"}
 
@@ -136,7 +136,7 @@ def test_containment_margin_shifts_the_floor_outwards():
     assert expected > 1e-4 and out["design_region"].item() == pytest.approx(expected, rel=1e-5)
     late = _FnField(lambda x: (d_out(x) - m).clamp_min(0))  # zero up to m beyond E, then slope 1
     assert task.loss_terms(late, 0, active, torch.Generator().manual_seed(5))["design_region"].item() < 1e-15
-    plain = make_task(spec, resolve_config(spec, "single", {"losses": {"containment_slope": 1.0}}))
+    plain = make_task(spec, spec.config("single", {"losses": {"containment_slope": 1.0}}))
     assert plain.loss_terms(late, 0, active, torch.Generator().manual_seed(5))["design_region"].item() > 1e-5
 
 
@@ -147,8 +147,8 @@ def test_band_containment_adds_the_band_points_outside_E():
     base = load_spec("obstacle")
     spec = base.model_copy(update={"geometry": base.geometry.model_copy(update={"interface_band": 0.05})})
     over = {"sampling": {"n_band": 256, "n_outside": 64}}
-    task = make_task(spec, resolve_config(spec, "single", {**over, "sampling": {**over["sampling"], "band_containment": True}}))
-    plain = make_task(spec, resolve_config(spec, "single", over))
+    task = make_task(spec, spec.config("single", {**over, "sampling": {**over["sampling"], "band_containment": True}}))
+    plain = make_task(spec, spec.config("single", over))
     active = {"design_region"}
     # a film of half-width 0.02 around the interfaces: it leaves E only near them
     field = _FnField(lambda x: torch.sqrt((x[:, 0].abs() - 0.9) ** 2 + (x[:, 1].abs() - 0.4).clamp_min(0) ** 2) - 0.02)

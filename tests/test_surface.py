@@ -8,10 +8,7 @@ import torch
 import trimesh
 
 from _shapes import Disk
-from ginn.fields import as_field
-from ginn.geometry.base import Box
-from ginn.models import Siren
-from ginn.surface import (
+from ginn.extract import (
     Boundary,
     extract_boundary,
     grid_volume,
@@ -19,6 +16,9 @@ from ginn.surface import (
     make_grid,
     sample_field,
 )
+from ginn.fields import as_field
+from ginn.geometry.base import Box
+from ginn.models import Siren
 
 BOX3 = Box((-1.0, -1.0, -1.0), (1.0, 1.0, 1.0))
 BOX2 = Box((-1.0, -1.0), (1.0, 1.0))
@@ -111,7 +111,7 @@ def test_distance_to_boundary_exact_for_circle():
 
 
 def test_closest_point_on_triangle_against_dense_barycentric_search():
-    from ginn.surface import _closest_on_triangles
+    from ginn.geometry.mesh import closest_on_triangles as _closest_on_triangles
 
     rng = np.random.default_rng(0)
     tri = rng.normal(size=(50, 3, 3))
@@ -130,7 +130,7 @@ def test_closest_point_on_triangle_against_dense_barycentric_search():
 
 
 def test_distance_to_mesh_matches_brute_force():
-    from ginn.surface import _closest_on_triangles
+    from ginn.geometry.mesh import closest_on_triangles as _closest_on_triangles
 
     g = make_grid(BOX3, 24)
     b = extract_boundary(sample_field(random_siren(3, 1), g), g)

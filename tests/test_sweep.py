@@ -19,13 +19,13 @@ from ginn.errors import ConfigError  # noqa: E402
 from ginn.sweep import (  # noqa: E402
     MISSING_PENALTY,
     SweepSetup,
-    _pruning_hook,
     load_space,
     objective_value,
     open_study,
     parse_space,
     run_worker,
 )
+from ginn.sweep.study import _pruning_hook  # noqa: E402
 
 TINY = ["--set", "latents.n_shapes=2", "--set", "model.hidden=[8,8]", "--set", "sampling.n_domain=64",
         "--set", "sampling.n_outside=32", "--set", "sampling.n_obstacle=16", "--set", "sampling.n_interface=16",
@@ -125,16 +125,15 @@ def test_pruning_hook_reports_every_k_and_honours_should_prune():
 
 
 def test_pruned_trial_is_recorded_with_its_run_directory(tmp_path, monkeypatch):
+    import ginn.sweep.study as sw
+    from ginn.config import config_to_dict, parse_set
     from ginn.problems import load_spec
-    from ginn.train.config import config_to_dict, parse_set
-    from ginn.train.registry import resolve_config
-    import ginn.sweep as sw
 
     monkeypatch.setattr(sw, "_make_pruner", lambda space, iters: optuna.pruners.ThresholdPruner(upper=-1.0))
     spec = load_spec("obstacle")
-    base = config_to_dict(resolve_config(spec, None, parse_set(TINY[1::2]), {"training": {"iterations": 4}}))
+    base = config_to_dict(spec.config(None, parse_set(TINY[1::2]), {"training": {"iterations": 4}}))
     space = parse_space({"training.lr": {"type": "float", "low": 1e-3, "high": 1e-2}, "report_every": 2})
-    setup = SweepSetup(spec, None, base, space, tmp_path, "p", sw.default_storage(tmp_path), None, True)
+    setup = SweepSetup(spec, base, space, tmp_path, "p", sw.default_storage(tmp_path), True)
     counts = run_worker(setup, 2, log=lambda m: None)
     assert counts == {"complete": 0, "pruned": 2, "fail": 0}
     trials = open_study(setup.storage, "p", create=False).get_trials()

@@ -12,6 +12,8 @@ import numpy as np
 import pytest
 import torch
 
+from ginn.config import ConnectednessConfig
+from ginn.extract.grid import label_components
 from ginn.geometry.base import Box, Region
 from ginn.topology import (
     MAXIMUM,
@@ -27,11 +29,9 @@ from ginn.topology import (
     count_components,
     death_points,
     find_critical_points,
-    label_components,
     make_connectedness_loss,
     trace_surface_network,
 )
-from ginn.train.config import ConnectednessConfig
 
 DT = torch.float64
 

@@ -11,9 +11,9 @@ from pathlib import Path
 import pytest
 import torch
 
+from ginn.config import LossTerm, build_config
 from ginn.models import MLP
 from ginn.train.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
-from ginn.train.config import LossTerm, build_config
 from ginn.train.task import Task
 from ginn.train.trainer import Trainer
 

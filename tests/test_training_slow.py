@@ -4,7 +4,7 @@ import pytest
 import torch
 
 from ginn.problems import load_spec
-from ginn.train.registry import make_task, resolve_config
+from ginn.tasks import make_task
 from ginn.train.trainer import Trainer
 
 pytestmark = pytest.mark.slow
@@ -12,7 +12,7 @@ pytestmark = pytest.mark.slow
 
 def train(name, preset, over):
     spec = load_spec(name)
-    cfg = resolve_config(spec, preset, over)
+    cfg = spec.config(preset, over)
     task = make_task(spec, cfg)
     res = Trainer(task, cfg, None, progress=False).train()
     return task, res
@@ -29,7 +29,7 @@ def test_single_shape_obstacle_fits_the_interfaces():
 def test_plateau_cpu_preset_meets_the_acceptance_bounds():
     """Issue 8: the GINN surface lies within CD2 0.02 of the discrete minimal surface and its
     area is within 2 % of the reference (the `cpu` preset, about 25 minutes on 2 idle cores)."""
-    from ginn.plateau import evaluate_plateau
+    from ginn.eval.plateau import evaluate_plateau
 
     task, res = train("plateau", "cpu", {})
     out = evaluate_plateau(res.model, task.problem)
@@ -44,7 +44,7 @@ def test_obstacle_quick_preset_meets_the_acceptance_bounds():
     diversity_mean >= 0.1 on the 256-cell evaluation grid of `ginn eval`. Measured (run o_Z,
     docs/results.md): CD1 4.1e-3, vol_out 1.5e-3, diversity 0.116; about 12 minutes on 2 idle cores.
     """
-    from ginn.evaluation import evaluate_shapes
+    from ginn.eval.shapes import evaluate_shapes
 
     task, res = train("obstacle", "quick", {})
     ev = evaluate_shapes(res.model, task.Z, task.problem, resolution=256)
@@ -67,7 +67,7 @@ def test_softplus_generative_obstacle_collapses_without_diversity():
     cells of the 256-node evaluation grid (h = 2/255), the smallest mean chamfer distance we call
     distinct. About 4 minutes on one core.
     """
-    from ginn.evaluation import evaluate_shapes
+    from ginn.eval.shapes import evaluate_shapes
 
     def delta(weight):
         over = {"model": {"kind": "resmlp", "width": 64, "n_blocks": 4, "beta": 10.0, "latent_scale": 1.0},

@@ -2,20 +2,21 @@
 
 The public API, re-exported here (everything else is internal and may change):
 
-* front door: :func:`fit`, :func:`evaluate`
+* front door: :func:`fit` (train a problem, as ``ginn train``), :func:`evaluate` (as ``ginn eval``),
+  :func:`load_run`, :func:`resolve`
+* configuration: :class:`RunConfig`, :func:`build_config`
 * fields and models: :mod:`ginn.fields` (the derivative engine), :class:`Siren`, :class:`ResMLP`,
   :class:`MLP`, :class:`FourierMLP`, :class:`PeriodicEncoding`, :func:`build_model`
 * geometry: :class:`Box`, :class:`Region`, :class:`Interface`, primitives, CSG, meshes, samplers
-* problems: :class:`Problem`, :func:`load_spec`, :func:`list_problems`
-* training: :class:`RunConfig`, :func:`build_config`, :class:`Task`, :class:`ShapeTask`,
-  :class:`Trainer`, :func:`make_task`, :func:`resolve_config`, :func:`load_run`
+* problems: :class:`Problem`, :class:`ProblemSpec`, :func:`load_spec`, :func:`list_problems`
+* training: :class:`Task`, :class:`ShapeTask`, :class:`Trainer`, :func:`make_task`, :data:`TASKS`
 * losses: the constraint losses, :func:`diversity`, :func:`project_to_zero`
 * evaluation: :func:`evaluate_shapes`
 """
 
 from . import fields
-from .api import evaluate, fit
-from .evaluation import evaluate_shapes
+from .config import RunConfig, build_config
+from .eval.shapes import evaluate_shapes
 from .geometry import (
     AABox,
     Annulus,
@@ -48,7 +49,7 @@ from .geometry import (
     sample_outside,
 )
 from .levelset import project_to_zero
-from .losses.constraints import (
+from .losses import (
     DesignRegionLoss,
     EikonalLoss,
     InterfaceLoss,
@@ -56,30 +57,26 @@ from .losses.constraints import (
     NormalLoss,
     ObstacleLoss,
     StrainLoss,
+    diversity,
 )
-from .losses.diversity import diversity
-from .models import MLP, FourierMLP, NeuralField, PeriodicEncoding, ResMLP, Siren
-from .models.factory import build_model
-from .problems import Problem, list_problems, load_spec
-from .train.config import RunConfig, build_config
-from .train.registry import make_task, resolve_config
-from .train.run import load_run
-from .train.shape_task import ShapeTask
-from .train.task import Task
-from .train.trainer import Trainer
-
-__version__ = "0.1.0"
+from .models import MLP, FourierMLP, NeuralField, PeriodicEncoding, ResMLP, Siren, build_model
+from .problems import Problem, ProblemSpec, list_problems, load_spec
+from .runs import Run, evaluate, fit, load_run, resolve
+from .tasks import TASKS, ShapeTask, make_task
+from .train import Task, Trainer
+from .version import __version__
 
 __all__ = [
     "__version__",
-    "fit", "evaluate",
+    "fit", "evaluate", "load_run", "resolve", "Run",
+    "RunConfig", "build_config",
     "fields", "NeuralField", "Siren", "ResMLP", "MLP", "FourierMLP", "PeriodicEncoding", "build_model",
     "Box", "Region", "Interface", "AABox", "Rectangle", "Cuboid", "Ball", "Disk", "Sphere", "HalfSpace",
     "Polygon", "Cylinder", "Extrusion", "Union", "Intersection", "Difference", "Transformed",
     "Segment", "Polyline", "Circle", "CylinderWall", "Annulus", "MeshRegion", "MeshInterface",
     "sample_box", "sample_inside", "sample_outside", "sample_interfaces", "sample_band",
-    "Problem", "load_spec", "list_problems",
-    "RunConfig", "build_config", "Task", "ShapeTask", "Trainer", "make_task", "resolve_config", "load_run",
+    "Problem", "ProblemSpec", "load_spec", "list_problems",
+    "Task", "ShapeTask", "Trainer", "make_task", "TASKS",
     "DesignRegionLoss", "ObstacleLoss", "InterfaceLoss", "NormalLoss", "EikonalLoss", "MeanCurvatureLoss",
     "StrainLoss", "diversity", "project_to_zero",
     "evaluate_shapes",

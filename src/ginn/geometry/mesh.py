@@ -107,6 +107,25 @@ def closest_points_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: 
     return out
 
 
+def closest_on_segments(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Closest points on segments ``ab`` to points ``p`` (all broadcastable ``(..., d)``)."""
+    ab = b - a
+    t = np.einsum("...i,...i->...", p - a, ab) / np.maximum(np.einsum("...i,...i->...", ab, ab), 1e-300)
+    return a + np.clip(t, 0.0, 1.0)[..., None] * ab
+
+
+def closest_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Closest points on triangles ``abc`` to points ``p`` (all broadcastable ``(..., 3)``).
+
+    Broadcasting form of :func:`closest_points_on_triangles` (rowwise, ``(n, 3)``).
+    """
+    p, a, b, c = np.broadcast_arrays(p, a, b, c)
+    shape = p.shape
+    flat = [np.ascontiguousarray(t, dtype=np.float64).reshape(-1, 3) for t in (p, a, b, c)]
+    return closest_points_on_triangles(*flat).reshape(shape)
+
+
+
 class _RayParity:
     """Inside test for a closed triangle mesh: parity of crossings of the ray ``+z`` from each point.
 
@@ -311,7 +330,7 @@ class MeshRegion(Region):
         self._dist = _SurfaceDistance(v, f, k=k)
 
     @classmethod
-    def from_file(cls, path, center=None, scale=None, **kw) -> "MeshRegion":
+    def from_file(cls, path, center=None, scale=None, **kw) -> MeshRegion:
         return cls(load_mesh(path, center, scale), **kw)
 
     def contains(self, x: Tensor) -> Tensor:
@@ -367,7 +386,7 @@ class MeshInterface(Interface):
         self._dist = _SurfaceDistance(v, f, k=k)
 
     @classmethod
-    def from_file(cls, path, center=None, scale=None, **kw) -> "MeshInterface":
+    def from_file(cls, path, center=None, scale=None, **kw) -> MeshInterface:
         return cls(load_mesh(path, center, scale), **kw)
 
     @property

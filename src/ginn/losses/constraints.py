@@ -17,6 +17,7 @@ import torch
 from torch import Tensor
 
 from .. import fields
+from ..config import STRAIN_CLIP
 
 
 def _wmean(v: Tensor, w: Tensor | None) -> Tensor:
@@ -103,7 +104,7 @@ class StrainLoss:
     Inputs at boundary points away from the interfaces: gradients ``(m, d)``, Hessians ``(m, d, d)``.
     """
 
-    clip: float = 1000.0
+    clip: float = STRAIN_CLIP
     name: str = "strain"
 
     def __call__(self, grad: Tensor, hess: Tensor) -> Tensor:

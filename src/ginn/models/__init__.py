@@ -1,6 +1,9 @@
-"""Neural-field models: every model is called as ``model(x, z)`` with ``x`` (n, d), ``z`` (n, k)."""
+"""Neural-field models: every model is called as ``model(x, z)`` with ``x`` (n, d), ``z`` (n, k);
+:func:`build_model` makes one from its config; the latent codes of generative models."""
 
 from .base import ConcatConditioning, Conditioning, IdentityEncoding, NeuralField, PeriodicEncoding
+from .factory import build_model
+from .latents import fixed_latents, latent_dim, midpoints, random_latents
 from .mlp import MLP, FourierFeatures, FourierMLP, ResMLP, make_activation
 from .siren import SineLayer, Siren
 
@@ -17,4 +20,9 @@ __all__ = [
     "FourierMLP",
     "FourierFeatures",
     "make_activation",
+    "build_model",
+    "fixed_latents",
+    "random_latents",
+    "latent_dim",
+    "midpoints",
 ]

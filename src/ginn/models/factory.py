@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from torch import nn
 
-from ..train.config import ModelConfig
+from ..config import ModelConfig
 from .base import ConcatConditioning, PeriodicEncoding
 from .mlp import MLP, FourierMLP, ResMLP
 from .siren import Siren

@@ -20,6 +20,8 @@ class Problem:
         obstacles: regions the shape must not enter (also removed from E by the spec builder).
         interface_band: half-width of the denser sampling band around the interfaces (0: none).
         unit_scale: length scale at which metric tolerances such as eps = 0.01 are stated.
+        reference: an independent reference solution evaluation compares against
+            (``"minimal-surface"``), or None.
     """
 
     name: str
@@ -30,6 +32,7 @@ class Problem:
     interface_band: float = 0.0
     unit_scale: float = 1.0
     description: str = ""
+    reference: str | None = None
     extra: dict = field(default_factory=dict)
 
     @property

@@ -14,17 +14,10 @@ from __future__ import annotations
 
 import torch
 
+from ..config import ConnectednessConfig
 from ..geometry.base import Box, Region
-from .components import (
-    b0,
-    b0_of_mask,
-    component_sizes,
-    count_components,
-    field_on_grid,
-    grid_points,
-    grid_shape,
-    label_components,
-)
+from .base import ConnectednessLossBase
+from .components import b0, b0_of_mask, component_sizes, count_components, field_on_grid
 from .connectedness import ConnectednessLoss, Penalties, SurfaceNetworkLossOptions, saddle_penalties, shape_components
 from .critical import (
     MAXIMUM,
@@ -42,17 +35,17 @@ from .surface_network import PathOptions, SurfaceNetwork, trace_surface_network
 def make_connectedness_loss(
     domain: Box,
     design_region: Region | None,
-    config,
+    config: ConnectednessConfig,
     device=None,
     dtype=torch.float32,
     options=None,
-) -> ConnectednessLoss | PersistentHomologyLoss:
+) -> ConnectednessLossBase:
     """The connectedness loss selected by ``config.method``.
 
     Arguments:
         domain: the box X.
         design_region: the design region E, or None.
-        config: :class:`ginn.train.config.ConnectednessConfig`.
+        config: :class:`ginn.config.ConnectednessConfig`.
         device, dtype: of the field.
         options: :class:`SurfaceNetworkLossOptions` or :class:`PersistenceOptions` (defaults
             when None).
@@ -70,6 +63,7 @@ def make_connectedness_loss(
 
 __all__ = [
     "make_connectedness_loss",
+    "ConnectednessLossBase",
     "ConnectednessLoss",
     "PersistentHomologyLoss",
     "SurfaceNetworkLossOptions",
@@ -89,12 +83,9 @@ __all__ = [
     "saddle_penalties",
     "shape_components",
     "death_points",
-    "label_components",
     "b0_of_mask",
     "component_sizes",
     "count_components",
     "field_on_grid",
-    "grid_points",
-    "grid_shape",
     "b0",
 ]

@@ -15,8 +15,8 @@ Conventions:
 
 Public API (all NumPy in, NumPy/int out, except :func:`b0` which evaluates a field):
 
-* :func:`grid_shape`, :func:`grid_points`: the grid of a :class:`~ginn.geometry.base.Box`.
-* :func:`label_components` ``(mask) -> (labels, n)``.
+* the grid is :func:`ginn.extract.grid.node_grid` and the labelling
+  :func:`ginn.extract.grid.label_components`.
 * :func:`b0_of_mask` ``(mask) -> int``.
 * :func:`component_sizes` ``(labels, n) -> sizes``.
 * :func:`count_components` ``(values, level=0, region_mask=None) -> int``.
@@ -29,64 +29,11 @@ from collections.abc import Sequence
 
 import numpy as np
 import torch
-from scipy import ndimage
 from torch import Tensor
 
+from ..extract.grid import label_components, node_grid
 from ..fields import Field, value
 from ..geometry.base import Box, Region
-
-
-def grid_shape(box: Box, resolution: int | Sequence[int]) -> tuple[int, ...]:
-    """Nodes per axis of a grid over ``box``.
-
-    Arguments:
-        box: the domain.
-        resolution: nodes along the *longest* axis (the others get proportionally fewer, at least
-            2, so cells are nearly square), or an explicit per-axis sequence.
-
-    Returns:
-        ``(n_1, ..., n_d)``.
-    """
-    if isinstance(resolution, (int, np.integer)):
-        ext = np.asarray(box.hi, dtype=float) - np.asarray(box.lo, dtype=float)
-        r = int(resolution)
-        return tuple(max(2, int(round(r * e / ext.max()))) for e in ext)
-    shape = tuple(int(n) for n in resolution)
-    if len(shape) != box.dim:
-        raise ValueError(f"resolution has {len(shape)} entries for a {box.dim}-dimensional box")
-    return shape
-
-
-def grid_points(
-    box: Box, resolution: int | Sequence[int], device=None, dtype=torch.float32
-) -> tuple[Tensor, tuple[int, ...]]:
-    """The nodes of a vertex grid over ``box``.
-
-    Returns:
-        points ``(prod(shape), d)`` in C order of an array of ``shape`` (``indexing="ij"``), and
-        ``shape``.
-    """
-    shape = grid_shape(box, resolution)
-    axes = [torch.linspace(a, b, n, device=device, dtype=dtype) for a, b, n in zip(box.lo, box.hi, shape)]
-    mesh = torch.meshgrid(*axes, indexing="ij")
-    return torch.stack([m.reshape(-1) for m in mesh], dim=-1), shape
-
-
-def label_components(mask: np.ndarray, connectivity: int = 1) -> tuple[np.ndarray, int]:
-    """Label the connected components of a boolean grid.
-
-    Arguments:
-        mask: boolean array of any dimension (2D and 3D in practice).
-        connectivity: 1 for face neighbours (default, matches the cubical PH), ``mask.ndim`` for
-            all neighbours including diagonals.
-
-    Returns:
-        ``labels`` (int array of ``mask.shape``; 0 outside, ``1..n`` for the components) and ``n``.
-    """
-    mask = np.asarray(mask, dtype=bool)
-    structure = ndimage.generate_binary_structure(mask.ndim, connectivity)
-    labels, n = ndimage.label(mask, structure=structure)
-    return labels, int(n)
 
 
 def b0_of_mask(mask: np.ndarray, connectivity: int = 1) -> int:
@@ -136,7 +83,8 @@ def field_on_grid(
     """
     if Z is not None:
         device, dtype = Z.device, (Z.dtype if Z.is_floating_point() else dtype)
-    pts, shape = grid_points(box, resolution, device=device, dtype=dtype)
+    grid = node_grid(box, resolution)
+    pts, shape = grid.tensor_points(device, dtype), grid.shape
     G = pts.shape[0]
     if Z is None:
         vals = value(field, pts, None, chunk=chunk).reshape(1, *shape)

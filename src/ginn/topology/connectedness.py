@@ -44,7 +44,8 @@ the saddles the loss needs are well conditioned.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field as dc_field
+from dataclasses import dataclass
+from dataclasses import field as dc_field
 
 import numpy as np
 import torch
@@ -52,9 +53,10 @@ from scipy import sparse
 from scipy.sparse import csgraph
 from torch import Tensor
 
+from ..extract.grid import label_components
 from ..geometry.base import Box, Region
-from .components import field_on_grid, label_components
-from .persistent import death_points
+from .base import ConnectednessLossBase
+from .components import field_on_grid
 from .critical import (
     MINIMUM,
     SADDLE,
@@ -65,6 +67,7 @@ from .critical import (
     latents_of,
     newton_refine,
 )
+from .persistent import death_points
 from .surface_network import PathOptions, SurfaceNetwork, trace_surface_network
 
 
@@ -287,7 +290,7 @@ def batch_penalties(
         n_shapes: ``S``.
         eps: of ``1 / (d + eps)``.
         grid_labels: optional per-shape labelled grids of ``{f <= 0}`` (∩ E) over ``box``
-            (:func:`ginn.topology.components.label_components`), giving components that touch
+            (:func:`ginn.extract.grid.label_components`), giving components that touch
             the domain or region boundary.
 
     Returns:
@@ -328,20 +331,15 @@ def batch_penalties(
     return p, results
 
 
-class ConnectednessLoss:
-    """Stateful surface-network connectedness loss for all shapes of a batch.
+class ConnectednessLoss(ConnectednessLossBase):
+    """Stateful surface-network connectedness loss for all shapes of a batch (see
+    :class:`ConnectednessLossBase`; critical points outside the domain are dropped, paths leaving
+    it end).
 
     Arguments:
-        domain: the box X (critical points outside are dropped; paths leaving it end).
-        design_region: the design region E, or None.
-        config: a :class:`ginn.train.config.ConnectednessConfig` (uses ``every``, ``grid``,
-            ``eps``, ``restrict_to_design_region``).
-        device, dtype: of the stored critical points (the field's).
+        domain, design_region, config, device, dtype: see :class:`ConnectednessLossBase` (uses
+            ``config.every``, ``grid``, ``eps``, ``restrict_to_design_region``).
         options: numerical settings (:class:`SurfaceNetworkLossOptions`).
-
-    Call ``loss_fn(field, Z)`` with a field ``(x, z) -> (n,)`` and latents ``Z`` ``(S, k)`` or
-    None; returns a scalar tensor, differentiable w.r.t. the field's parameters (and ``Z``).
-    After each call ``last_info`` holds diagnostics (plain Python numbers).
     """
 
     def __init__(
@@ -353,11 +351,7 @@ class ConnectednessLoss:
         dtype=torch.float32,
         options: SurfaceNetworkLossOptions | None = None,
     ):
-        self.domain = domain
-        self.region = design_region if getattr(config, "restrict_to_design_region", True) else None
-        self.config = config
-        self.device = torch.device(device) if device is not None else torch.device("cpu")
-        self.dtype = dtype
+        super().__init__(domain, design_region, config, device, dtype)
         self.options = options or SurfaceNetworkLossOptions()
         self.generator = torch.Generator().manual_seed(self.options.seed)
         self.step = 0
@@ -372,7 +366,6 @@ class ConnectednessLoss:
         self._grid_values = np.zeros(0)
         self._grid_nodes = torch.zeros(0)
         self._extra: tuple[Tensor, Tensor, np.ndarray] = (torch.zeros(0, domain.dim), torch.zeros(0, dtype=torch.long), np.zeros(0))
-        self.last_info: dict = {}
 
     # --- state ---------------------------------------------------------------------------------
 

@@ -33,9 +33,9 @@ import torch
 from sklearn.cluster import DBSCAN
 from torch import Tensor
 
+from ..extract.grid import Grid, proportional_counts
 from ..fields import Field, gradient, hessian
 from ..geometry.base import Box
-from .components import grid_points, grid_shape
 
 MINIMUM, SADDLE, MAXIMUM = 0, 1, 2
 
@@ -115,7 +115,7 @@ class CriticalPoints:
         """Boolean ``(m,)``: some Hessian eigenvalue is (numerically) zero."""
         return self.eigvals.abs().min(-1).values <= eig_tol
 
-    def select(self, mask: Tensor) -> "CriticalPoints":
+    def select(self, mask: Tensor) -> CriticalPoints:
         """The subset selected by a boolean mask or an index tensor."""
         return CriticalPoints(
             self.x[mask], self.shape[mask], self.f[mask], self.grad_norm[mask], self.eigvals[mask], self.eigvecs[mask]
@@ -131,7 +131,7 @@ class CriticalPoints:
         }
 
     @staticmethod
-    def empty(d: int, device=None, dtype=torch.float32) -> "CriticalPoints":
+    def empty(d: int, device=None, dtype=torch.float32) -> CriticalPoints:
         z = torch.zeros(0, device=device, dtype=dtype)
         return CriticalPoints(
             torch.zeros(0, d, device=device, dtype=dtype),
@@ -175,7 +175,7 @@ def seed_grid(
     Returns:
         seeds ``(S, G, d)`` (C order of the cell grid ``shape`` within each shape) and ``shape``.
     """
-    shape = grid_shape(box, grid)
+    shape = proportional_counts(box, grid)
     lo = torch.tensor(box.lo, device=device, dtype=dtype)
     hi = torch.tensor(box.hi, device=device, dtype=dtype)
     h = (hi - lo) / torch.tensor(shape, device=device, dtype=dtype)
@@ -369,7 +369,8 @@ def find_critical_points(
     sh = torch.arange(S, device=device).repeat_interleave(G)
     x = seeds.reshape(S * G, -1)
     if options.seed_filter:
-        nodes, nshape = grid_points(box, tuple(n + 1 for n in gshape), device=device, dtype=dtype)
+        ngrid = Grid(np.asarray(box.lo, dtype=np.float64), np.asarray(box.hi, dtype=np.float64), gshape)
+        nodes, nshape = ngrid.tensor_points(device, dtype), ngrid.shape
         Nn = nodes.shape[0]
         nsh = torch.arange(S, device=device).repeat_interleave(Nn)
         _, g = gradient(field, nodes.repeat(S, 1), latents_of(Z, nsh))

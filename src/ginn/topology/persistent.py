@@ -30,8 +30,10 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from ..extract.grid import node_grid
 from ..geometry.base import Box, Region
-from .components import field_on_grid, grid_points
+from .base import ConnectednessLossBase
+from .components import field_on_grid
 from .critical import cell_size, latents_of, newton_refine
 
 
@@ -91,16 +93,12 @@ def death_points(values: np.ndarray, level: float = 0.0) -> DeathPoints:
     return DeathPoints(idx, death[dying], birth[dying], int(alive.sum()))
 
 
-class PersistentHomologyLoss:
-    """Cubical-PH connectedness loss for all shapes of a batch; same interface as
-    :class:`ginn.topology.connectedness.ConnectednessLoss`.
+class PersistentHomologyLoss(ConnectednessLossBase):
+    """Cubical-PH connectedness loss for all shapes of a batch (see :class:`ConnectednessLossBase`).
 
     Arguments:
-        domain: the box X (the grid's extent).
-        design_region: the design region E, or None.
-        config: a :class:`ginn.train.config.ConnectednessConfig` (uses ``grid``, ``eps``,
-            ``restrict_to_design_region``).
-        device, dtype: of the grid points.
+        domain, design_region, config, device, dtype: see :class:`ConnectednessLossBase` (uses
+            ``config.grid``, ``config.eps``, ``config.restrict_to_design_region``).
         options: :class:`PersistenceOptions`.
     """
 
@@ -113,28 +111,17 @@ class PersistentHomologyLoss:
         dtype=torch.float32,
         options: PersistenceOptions | None = None,
     ):
-        self.domain = domain
-        self.region = design_region if getattr(config, "restrict_to_design_region", True) else None
-        self.config = config
-        self.device = torch.device(device) if device is not None else torch.device("cpu")
-        self.dtype = dtype
+        super().__init__(domain, design_region, config, device, dtype)
         self.options = options or PersistenceOptions()
         self.resolution = int(self.options.resolution or config.grid)
-        pts, shape = grid_points(domain, self.resolution, device=self.device, dtype=dtype)
+        grid = node_grid(domain, self.resolution)
+        pts, shape = grid.tensor_points(self.device, dtype), grid.shape
         self._grid = pts.reshape(*shape, -1)
         self._shape = shape
         self._outside = None
         if self.region is not None:
             self._outside = ~self.region.contains(pts).reshape(shape).cpu().numpy().astype(bool)
         self.last_points: tuple[Tensor, Tensor, Tensor] | None = None
-        self.last_info: dict = {}
-
-    def state_dict(self) -> dict[str, Tensor]:
-        """Stateless (kept for the common interface)."""
-        return {}
-
-    def load_state_dict(self, state: dict[str, Tensor]) -> None:
-        return None
 
     def __call__(self, field, Z: Tensor | None) -> Tensor:
         t0 = time.perf_counter()

@@ -116,7 +116,7 @@ class SurfaceNetwork:
         return sparse.csr_matrix(dense)
 
     @staticmethod
-    def empty(points: CriticalPoints) -> "SurfaceNetwork":
+    def empty(points: CriticalPoints) -> SurfaceNetwork:
         d = points.dim
         z = np.zeros(0)
         i = np.zeros(0, np.int64)

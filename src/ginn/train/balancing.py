@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from torch import Tensor
 
-from .config import BalancingConfig, LossTerm
+from ..config import BalancingConfig, LossTerm
 
 
 class WeightedSum:

@@ -43,7 +43,8 @@ import torch
 import torch.distributed as tdist
 from torch import Tensor
 
-from ..errors import ConfigError
+from ..config import RunConfig, with_overrides
+from ..errors import ConfigError, GinnError
 
 
 def in_torchrun() -> bool:
@@ -84,13 +85,11 @@ class DistContext:
         k = n // self.world
         return self.rank * k, (self.rank + 1) * k
 
-    def localize(self, cfg):
+    def localize(self, cfg: RunConfig) -> RunConfig:
         """``cfg`` with this rank's device (``cuda`` -> ``cuda:LOCAL_RANK``)."""
-        from .config import build_config, config_to_dict
-
         if cfg.device == self.device:
             return cfg
-        return build_config(config_to_dict(cfg), {"device": self.device})
+        return with_overrides(cfg, {"device": self.device})
 
     # --- collectives ---------------------------------------------------------------------------
 
@@ -224,8 +223,6 @@ def on_main(ctx: DistContext | None, fn):
 
     A :class:`ginn.errors.GinnError` raised on rank 0 is raised on every rank, so all stop together.
     """
-    from ..errors import GinnError
-
     if ctx is None:
         return fn()
     result, err = None, None
@@ -240,7 +237,8 @@ def on_main(ctx: DistContext | None, fn):
     return result
 
 
-def cross_values_sharded(field, xb_local: Tensor, Z_local: Tensor, mask_local: Tensor | None, ctx: DistContext) -> tuple[Tensor, Tensor | None]:
+def cross_values_sharded(field, xb_local: Tensor, Z_local: Tensor, mask_local: Tensor | None,
+                         ctx: DistContext) -> tuple[Tensor, Tensor | None]:
     """The full cross-value tensor of the diversity loss from sharded shapes, with exact gradients.
 
     Arguments:

@@ -25,17 +25,25 @@ from pathlib import Path
 import torch
 from torch import nn
 
+from ..config import DTYPES, RunConfig, TrainingConfig
 from ..errors import GinnError
 from .balancing import make_balancer
 from .checkpoint import load_checkpoint, rng_state, save_checkpoint, set_rng_state
-from .config import RunConfig, TrainingConfig
+from .distributed import DistContext
 from .task import Task
+
 
 class TrainingDiverged(GinnError):
     """Non-finite losses persist even after rolling back with lower learning rates."""
 
 
-DTYPES = {"float32": torch.float32, "float64": torch.float64}
+class StopRun(Exception):
+    """Raised by a hook to end a run early: the trainer writes a checkpoint and returns with
+    ``status`` (e.g. ``"pruned"`` for a sweep trial that the pruner stopped)."""
+
+    def __init__(self, status: str, reason: str = ""):
+        super().__init__(reason or status)
+        self.status = status
 
 
 def lr_factor(t: TrainingConfig, it: int) -> float:
@@ -51,10 +59,11 @@ class TrainResult:
     """What :meth:`Trainer.train` returns."""
 
     model: nn.Module
-    status: str  # "completed" | "interrupted"
+    status: str  # "completed" | "interrupted" | a StopRun's status
     step: int
     seconds: float
     last_losses: dict[str, float]
+    reason: str = ""
 
 
 class _StopFlag:
@@ -63,7 +72,7 @@ class _StopFlag:
         self.signum: int | None = None
         self._old: dict[int, object] = {}
 
-    def __enter__(self) -> "_StopFlag":
+    def __enter__(self) -> _StopFlag:
         for s in (signal.SIGINT, signal.SIGTERM):
             try:
                 self._old[s] = signal.signal(s, self._handle)
@@ -102,7 +111,7 @@ class Trainer:
         run_dir: str | Path | None = None,
         progress: bool = True,
         hooks: list[Callable] | None = None,
-        dist=None,
+        dist: DistContext | None = None,
     ):
         self.task, self.cfg = task, cfg
         self.dist = dist
@@ -120,8 +129,6 @@ class Trainer:
         self.gen = torch.Generator(device=self.device).manual_seed(cfg.seed)
         self.model = task.build_model().to(device=self.device, dtype=self.dtype)
         if dist is not None:
-            if not hasattr(task, "distribute"):
-                raise GinnError(f"task kind {task.kind!r} does not support distributed training")
             task.distribute(dist)
             dist.broadcast_parameters(self.model)
         t = cfg.training
@@ -277,6 +284,7 @@ class Trainer:
         last: dict[str, float] = {}
         status = "completed"
         t0 = time.perf_counter() - self.elapsed
+        stopped: StopRun | None = None
         with _StopFlag() as flag:
             while self.step < total_iters:
                 step = self.step
@@ -284,8 +292,12 @@ class Trainer:
                 self.elapsed = time.perf_counter() - t0
                 if values is not None:
                     last = values
-                    for h in self.hooks:
-                        h(self, step, values)
+                    try:
+                        for h in self.hooks:
+                            h(self, step, values)
+                    except StopRun as e:
+                        stopped, status = e, e.status
+                        break
                     if step % t.log_every == 0 or self.step == total_iters:
                         rec = {"step": step, "time": round(self.elapsed, 3), "lr": self.optimizer.param_groups[0]["lr"]}
                         rec.update(values)
@@ -293,7 +305,8 @@ class Trainer:
                     if bar is not None:
                         bar.update(1)
                         if step % max(1, t.log_every) == 0:
-                            bar.set_postfix({k: f"{v:.2e}" for k, v in values.items() if not k.startswith("_") and k != "grad_norm"}, refresh=False)
+                            shown = {k: f"{v:.2e}" for k, v in values.items() if not k.startswith("_") and k != "grad_norm"}
+                            bar.set_postfix(shown, refresh=False)
                 if self.step % t.checkpoint_every == 0 and self.step > 0 and values is not None:
                     self.save()
                 if flag.stop if self.dist is None else self.dist.any(flag.stop):
@@ -304,4 +317,6 @@ class Trainer:
         self.save()
         if status == "interrupted":
             self._log({"step": self.step, "event": "interrupted", "signal": flag.signum})
-        return TrainResult(self.model, status, self.step, self.elapsed, last)
+        elif stopped is not None:
+            self._log({"step": self.step, "event": status, "reason": str(stopped)})
+        return TrainResult(self.model, status, self.step, self.elapsed, last, str(stopped) if stopped else "")

@@ -1,0 +1,64 @@
+"""The argument parser of the ``ginn`` command (what ``ginn --help`` shows; the commands live in
+:mod:`ginn.cli.commands`)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from .sweep_parser import add_sweep_parser
+
+
+class Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line ``ginn: error: ...`` and exit status 2."""
+
+    def error(self, message: str):
+        sys.stderr.write(f"ginn: error: {message} (see `{self.prog} --help`)\n")
+        raise SystemExit(2)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = Parser(prog="ginn", description="Geometry-informed neural networks: shapes from constraints alone.")
+    sub = p.add_subparsers(dest="command", parser_class=Parser, metavar="COMMAND")
+
+    t = sub.add_parser("train", help="train a built-in problem or a YAML spec", description="Train a GINN and write a run directory.")
+    t.add_argument("problem", help="built-in problem name (see `ginn problems`) or path to a SPEC.yaml")
+    t.add_argument("--preset", help="named preset of the problem (e.g. quick, demo, paper)")
+    t.add_argument("--out", help="run directory (default runs/<problem>-<timestamp>)")
+    t.add_argument("--device", help="cpu (default) or cuda[:N]")
+    t.add_argument("--seed", type=int, help="random seed")
+    t.add_argument("--iterations", type=int, help="number of training iterations")
+    t.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=VALUE",
+                   help="override any config field, e.g. --set losses.eikonal.weight=1e-5 (repeatable)")
+    t.add_argument("--quiet", action="store_true", help="no progress bar")
+    t.add_argument("--no-results", action="store_true", help="skip writing shapes and figures at the end")
+
+    r = sub.add_parser("resume", help="continue an interrupted run from its last checkpoint")
+    r.add_argument("run_dir")
+    r.add_argument("--iterations", type=int, help="train up to this many iterations in total")
+    r.add_argument("--quiet", action="store_true")
+    r.add_argument("--no-results", action="store_true")
+
+    pr = sub.add_parser("problems", help="list built-in problems, or print one with `show NAME`")
+    pr.add_argument("action", nargs="?", choices=["list", "show"], default="list")
+    pr.add_argument("name", nargs="?")
+
+    e = sub.add_parser("eval", help="compute the paper's metrics of runs (writes RUN/metrics.json)")
+    e.add_argument("run_dirs", nargs="+")
+    e.add_argument("--resolution", type=int, help="grid resolution per axis")
+    e.add_argument("--table", action="store_true", help="print a markdown table with one column per run")
+    e.add_argument("--device")
+
+    x = sub.add_parser("export", help="write meshes (3D) or contours (2D) for any latent value")
+    x.add_argument("run_dir")
+    x.add_argument("--latent", type=float, nargs="+", action="append", help="latent value(s); repeat for several shapes")
+    x.add_argument("--resolution", type=int, default=None)
+    x.add_argument("--format", choices=["stl", "ply", "obj"], default="stl")
+    x.add_argument("--out", help="output directory (default RUN/export)")
+
+    pl = sub.add_parser("plot", help="draw the paper's figures for a run (PNG)")
+    pl.add_argument("run_dir")
+    pl.add_argument("--resolution", type=int, default=None)
+
+    add_sweep_parser(sub)
+    return p

@@ -1,0 +1,451 @@
+"""Run configuration: the vocabulary every layer of ginn speaks, validated (pydantic) and frozen.
+
+Every field is settable by ``--set a.b=v``. A problem spec's ``defaults`` and a preset's overrides
+are partial dicts of :class:`RunConfig`, merged in that order, then ``--set`` overrides; the result
+is validated once (:func:`build_config`). Task-specific parameters are the typed group ``params``,
+one model per task kind, selected by its ``kind`` (a discriminated union): :class:`ShapeParams`,
+:class:`MirrorParams`, :class:`GrayScottParams`.
+
+This module imports only :mod:`ginn.errors`; ``docs/config.md`` is generated from the field
+descriptions here (``python scripts/config_reference.py``) and a test keeps it in step.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import dataclass
+from typing import Annotated, Any, Literal, Union
+
+import torch
+import yaml
+from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag, ValidationError, field_validator, model_validator
+
+from .errors import ConfigError, field_message, field_path
+
+#: Names of the floating-point types a run may train in (``training.dtype``).
+DTYPES = {"float32": torch.float32, "float64": torch.float64}
+
+#: Per-point surface strain is clipped at this value (training loss and metric alike).
+STRAIN_CLIP = 1000.0
+
+#: Grid cells along the longest domain axis when none is given, by purpose and dimension:
+#: ``eval`` for the metrics of ``ginn eval``, ``output`` for the shapes a run writes, ``figure``
+#: for a figure drawn on its own (3D renders cost time per triangle).
+RESOLUTION = {"eval": {2: 512, 3: 128}, "output": {2: 256, 3: 128}, "figure": {2: 256, 3: 64}}
+
+
+def default_resolution(purpose: Literal["eval", "output", "figure"], dim: int) -> int:
+    """The grid resolution used for ``purpose`` in ``dim`` dimensions (see :data:`RESOLUTION`)."""
+    return RESOLUTION[purpose][dim]
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class ModelConfig(_Strict):
+    """The neural field."""
+
+    kind: Literal["siren", "resmlp", "mlp", "fourier"] = "siren"
+    hidden: list[int] = Field(default_factory=lambda: [64, 64, 64, 64], description="hidden widths (siren, mlp, fourier)")
+    width: int = Field(512, gt=0, description="hidden width (resmlp)")
+    n_blocks: int = Field(4, gt=0, description="number of hidden layers (resmlp)")
+    w0_first: float = Field(1.0, gt=0, description="SIREN omega_0 of the first layer (omega_0^1)")
+    w0_hidden: float = Field(1.0, gt=0, description="SIREN omega_0 of the hidden layers")
+    latent_scale: float = Field(
+        1.0, gt=0, description="multiply the latent codes by this before they enter the network (for a SIREN: "
+        "the first layer's frequency along the latent axes is omega_0^1 * latent_scale); 1 is the paper's")
+    activation: str = Field("tanh", description="activation (mlp, fourier)")
+    beta: float = Field(1.0, gt=0, description="softplus sharpness (resmlp, softplus activations)")
+    sigma: float = Field(1.0, gt=0, description="Fourier-feature scale (fourier)")
+    n_features: int = Field(128, gt=0, description="number of Fourier features (fourier)")
+    periodic: bool = Field(False, description="encode x -> (sin 2 pi x, cos 2 pi x) first")
+
+    @field_validator("hidden")
+    @classmethod
+    def _positive(cls, v: list[int]) -> list[int]:
+        if not v or any(w <= 0 for w in v):
+            raise ValueError("hidden widths must be a non-empty list of positive integers")
+        return v
+
+
+class LatentConfig(_Strict):
+    """The latent codes of a generative model (``n_shapes == 1``: a single shape, no latent)."""
+
+    n_shapes: int = Field(1, ge=1)
+    dim: int = Field(1, ge=1, description="latent dimension when n_shapes > 1")
+    low: float = -1.0
+    high: float = 1.0
+    random: bool = Field(False, description="draw fresh random latents in [low, high]^dim every iteration")
+
+
+class LossTerm(_Strict):
+    """Weight and first iteration of one loss term (weight 0 switches it off)."""
+
+    weight: float = Field(0.0, ge=0)
+    start: int = Field(0, ge=0)
+
+    @field_validator("weight")
+    @classmethod
+    def _finite(cls, v: float) -> float:
+        if not math.isfinite(v):
+            raise ValueError("weight must be finite")
+        return v
+
+
+class LossesConfig(_Strict):
+    """All loss terms of a shape problem (Table 1, eikonal, obstacle, strain, connectedness, diversity)."""
+
+    interface: LossTerm = LossTerm(weight=1.0)
+    normal: LossTerm = LossTerm()
+    design_region: LossTerm = LossTerm(weight=1.0)
+    obstacle: LossTerm = LossTerm()
+    eikonal: LossTerm = LossTerm()
+    mean_curvature: LossTerm = LossTerm()
+    strain: LossTerm = LossTerm()
+    connectedness: LossTerm = LossTerm()
+    diversity: LossTerm = LossTerm()
+    containment_power: Literal[1, 2] = Field(
+        2,
+        description="exponent of the design-region and obstacle penalties: 2 is the paper's mean of "
+        "min(0, f)^2; 1 is the mean of |min(0, f)|, an exact penalty that keeps pushing on shallow violations",
+    )
+    containment_slope: float = Field(
+        0.0,
+        ge=0,
+        description="penalise f below slope * (distance into X minus E, or into an obstacle) instead of below 0; "
+        "0 is the paper's loss, 1 is exact for a signed distance field of any shape inside E",
+    )
+    containment_margin: float = Field(
+        0.0,
+        ge=0,
+        description="with containment_slope > 0: the floor starts this far beyond E (or inside an obstacle): "
+        "f must reach slope * max(0, distance - margin); within the margin only f >= 0 is asked, which leaves "
+        "a smooth field room to round the corners where an interface ends on the boundary of E",
+    )
+
+
+class SamplingConfig(_Strict):
+    """Monte Carlo point budgets per shape and iteration."""
+
+    n_domain: int = Field(4096, gt=0, description="uniform points in X (eikonal)")
+    n_outside: int = Field(2048, ge=0, description="points in X minus E (design-region loss)")
+    n_obstacle: int = Field(512, ge=0, description="points inside obstacles")
+    n_interface: int = Field(512, gt=0, description="points on the interfaces")
+    n_band: int = Field(0, ge=0, description="extra points in a band around the interfaces")
+    band_containment: bool = Field(
+        False,
+        description="also apply the design-region loss to the band points that lie outside E (a denser "
+        "estimate where a shape attached to an interface on dE tends to bulge out of E)",
+    )
+    n_boundary: int = Field(512, ge=0, description="points projected onto f = 0 (curvature, strain, diversity)")
+    projection_steps: int = Field(2, ge=0, description="Newton steps of the zero-level-set projection (after a free first step)")
+    strain_interface_clearance: float = Field(0.0, ge=0, description="skip boundary points this close to an interface for the strain loss")
+    strain_clip: float = Field(STRAIN_CLIP, gt=0, description="clip per-point surface strain at this value")
+    interface_corner_weight: float = Field(
+        1.0, ge=1, description="weight of the interfaces' corner samples: polyline vertices, end points included (Plateau)")
+
+
+class DiversityConfig(_Strict):
+    """Diversity loss of Appendix E."""
+
+    aggregation: Literal["min", "sum"] = "min"
+    p: float = Field(0.5, gt=0, description="exponent of the aggregation (paper: 0.5 with min)")
+    interface_clearance: float = Field(0.0, ge=0, description="leave boundary points this close to an interface out of "
+                                       "the shape distance (every shape must share the interfaces; 0: the paper's full boundary)")
+    eps: float = Field(0.0, ge=0, description="smooth the shape distance to sqrt(d^2 + eps^2), bounding the loss's gradient "
+                       "when shapes coincide (0: the paper's distance, singular there)")
+
+
+class ConnectednessConfig(_Strict):
+    """Connectedness loss (Appendix C); see docs/connectedness.md."""
+
+    method: Literal["surface-network", "persistent-homology"] = "surface-network"
+    every: int = Field(10, ge=1, description="full surface-network rebuild at least every K steps (warm updates between)")
+    grid: int = Field(16, ge=2, description="seed grid resolution per axis (surface network) or PH grid resolution")
+    restrict_to_design_region: bool = True
+    eps: float = Field(1e-2, gt=0, description="epsilon in p_k += 1/(d + eps)")
+    margin: float = Field(0.0, ge=0, description="the loss sees the shape {f <= -margin}: connections thinner than "
+                          "about 2 margin count as gaps and are pushed open (0: the paper's {f <= 0})")
+
+
+class BalancingConfig(_Strict):
+    """How loss terms are combined: fixed weights, or an augmented Lagrangian."""
+
+    method: Literal["weighted", "augmented-lagrangian"] = "weighted"
+    objectives: list[str] = Field(default_factory=lambda: ["eikonal", "mean_curvature", "strain", "diversity", "connectedness"],
+                                  description="terms minimised as objectives; the rest are constraints (augmented Lagrangian)")
+    mu: float = Field(1.0, gt=0, description="initial penalty parameter")
+    mu_growth: float = Field(1.0, ge=1.0, description="penalty growth factor per multiplier update")
+    mu_max: float = Field(1e4, gt=0)
+    update_every: int = Field(100, ge=1, description="iterations between multiplier updates")
+    lambda_lr: float = Field(1.0, gt=0, description="step size of the multiplier update")
+
+
+class TrainingConfig(_Strict):
+    """Optimiser, schedule and bookkeeping."""
+
+    iterations: int = Field(3000, ge=0)
+    lr: float = Field(1e-3, gt=0)
+    lr_decay: float = Field(0.5, gt=0, le=1, description="learning rate is lr * lr_decay^(t / lr_decay_every)")
+    lr_decay_every: int = Field(1000, gt=0)
+    lr_restart_at: int = Field(
+        0, ge=0, description="from this iteration on (0: never) the learning rate restarts at lr_restart and decays "
+        "from there: lr_restart * lr_decay^((t - lr_restart_at) / lr_decay_every)")
+    lr_restart: float = Field(1e-4, gt=0, description="learning rate at iteration lr_restart_at")
+    grad_clip: float = Field(1.0, ge=0, description="clip the gradient norm (0: off)")
+    log_every: int = Field(10, ge=1)
+    checkpoint_every: int = Field(200, ge=1)
+    max_bad_steps: int = Field(5, ge=1, description="consecutive non-finite steps before rolling back")
+    rollback_lr_factor: float = Field(0.5, gt=0, lt=1)
+    max_rollbacks: int = Field(3, ge=0, description="give up (error) after this many rollbacks")
+    dtype: Literal["float32", "float64"] = "float32"
+    threads: int = Field(0, ge=0, description="torch CPU threads (0: leave the default)")
+
+
+
+
+# --- task parameters: one typed group per task kind ------------------------------------------------
+
+
+class ShapeParams(_Strict):
+    """``params`` of a shape problem: none beyond the groups above."""
+
+    kind: Literal["shape"] = "shape"
+
+
+class MirrorParams(_Strict):
+    """``params`` of the parabolic mirror (``kind: mirror``)."""
+
+    kind: Literal["mirror"] = "mirror"
+    focus: float = Field(1.0, gt=0, description="height F of the focus (0, F); the exact mirror is x^2 / (4 F)")
+    x_min: float = Field(-1.0, description="left end of the aperture")
+    x_max: float = Field(1.0, description="right end of the aperture")
+    n_samples: int = Field(256, gt=0, description="ray positions per iteration")
+    sampling: Literal["uniform", "stratified"] = Field(
+        "stratified", description="uniform: i.i.d. uniform ray positions; stratified: one uniform point per equal cell")
+    reflection_weight: float = Field(1.0, ge=0, description="weight of the optics loss (the interface weight is losses.interface)")
+    reflection_start: int = Field(0, ge=0, description="first iteration of the optics loss")
+    n_eval: int = Field(2001, ge=2, description="grid points for the error against the exact parabola")
+    n_rays_plot: int = Field(15, ge=1, description="rays drawn in the figure")
+
+    @model_validator(mode="after")
+    def _aperture(self) -> MirrorParams:
+        if not self.x_min < self.x_max:
+            raise ValueError("x_min must be smaller than x_max")
+        return self
+
+
+@dataclass(frozen=True)
+class GSParams:
+    """Coefficients of the Gray-Scott equation (defaults: the paper's Appendix A.6)."""
+
+    D_v: float = 1.2e-5
+    D_u: float = 2.4e-5
+    alpha: float = 0.028
+    beta: float = 0.057
+
+
+class GrayScottLosses(_Strict):
+    """Weights and start iterations of the three Gray-Scott loss terms."""
+
+    residual: LossTerm = LossTerm(weight=1.0)
+    gradient: LossTerm = LossTerm(weight=1e-4)
+    diversity: LossTerm = LossTerm(weight=1e-7)
+
+
+class GrayScottParams(_Strict):
+    """``params`` of the Gray-Scott generative PINN (``kind: gray-scott``); see docs/gray-scott.md."""
+
+    kind: Literal["gray-scott"] = "gray-scott"
+    D_v: float = Field(1.2e-5, gt=0, description="diffusion coefficient of v")
+    D_u: float | None = Field(None, gt=0, description="diffusion coefficient of u (None: 2 D_v)")
+    alpha: float = Field(0.028, gt=0, description="feed rate")
+    beta: float = Field(0.057, gt=0, description="kill rate")
+    grid: int = Field(64, ge=8, description="training grid points per axis")
+    fine_grid: int = Field(
+        0, ge=0, description="from iteration fine_grid_from on, train on this grid instead of `grid` (0: never); a "
+        "finer grid holds the pattern's harmonics above the coarse grid's Nyquist frequency")
+    fine_grid_from: int = Field(0, ge=0, description="first iteration on `fine_grid`")
+    translate: bool = Field(True, description="translate the training grid randomly every iteration")
+    derivatives: Literal["fd", "spectral", "autograd"] = Field(
+        "fd", description="periodic finite differences, FFT on the same grid, or autograd through ginn.fields")
+    gradient_cap: float = Field(1.0, gt=0, description="the gradient reward saturates at this mean |grad|^2")
+    diversity_distance: Literal["rms", "shift"] = Field(
+        "rms", description="rms: RMS difference of v; shift: its minimum over the grid's periodic translations")
+    residual_gradient: Literal["full", "flow", "step"] = Field(
+        "full", description="full: gradient of mean(R^2) (the paper); flow: descend along the PDE's own time derivative R; "
+        "step: regress on the sampled state advanced by a semi-implicit pseudo-time step")
+    flow_steps: int = Field(0, ge=0, description="with residual_gradient=flow/step: switch to full after this many iterations (0: never)")
+    step_dt: float = Field(1.0, gt=0, description="pseudo-time sub-step of residual_gradient=step")
+    step_count: int = Field(10, ge=1, description="sub-steps per target of residual_gradient=step (target time step_dt * step_count)")
+    step_sobolev: float = Field(
+        0.0, ge=0, description="residual_gradient=step: add this weight times mean |D lap (W - target)|^2 (D = D_u, D_v) "
+        "to the regression, so that the network's error is also weighted where diffusion amplifies it into the residual")
+    step_reuse: int = Field(
+        1, ge=1, description="residual_gradient=step: iterations that regress on one target (computed every step_reuse "
+        "iterations and moved to each iteration's translated grid by an exact Fourier shift)")
+    u_offset: float = Field(0.0, description="u = u_offset + network output (0: the paper's raw output)")
+    v_offset: float = Field(0.0, description="v = v_offset + network output")
+    output_scale: float = Field(1.0, gt=0, description="u = u_offset + output_scale * network output (same for v)")
+    losses: GrayScottLosses = GrayScottLosses()
+    resolution: int = Field(256, ge=8, description="resolution of the written fields and pictures")
+    n_interpolation: int = Field(8, ge=2, description="patterns in the latent interpolation strip")
+
+    @property
+    def gs(self) -> GSParams:
+        """The equation's coefficients (``D_u`` defaults to ``2 D_v``)."""
+        return GSParams(D_v=self.D_v, D_u=self.D_u if self.D_u is not None else 2.0 * self.D_v,
+                        alpha=self.alpha, beta=self.beta)
+
+
+_PARAM_TYPES: dict[str, type[_Strict]] = {m.model_fields["kind"].default: m for m in (ShapeParams, MirrorParams, GrayScottParams)}
+
+#: Every task kind (``ginn.tasks.registry`` maps each to its Task class).
+TASK_KINDS: tuple[str, ...] = tuple(_PARAM_TYPES)
+
+
+def _kind_of(v: Any) -> str:
+    return v.get("kind", "shape") if isinstance(v, dict) else getattr(v, "kind", "shape")
+
+
+#: The ``params`` group: one model per task kind, chosen by ``kind`` (default ``shape``).
+TaskParams = Annotated[
+    Union[tuple(Annotated[m, Tag(k)] for k, m in _PARAM_TYPES.items())],  # type: ignore[misc]
+    Discriminator(_kind_of),
+]
+
+
+class OutputConfig(_Strict):
+    """What a finished run writes."""
+
+    resolution: int | None = Field(
+        None, ge=2, description="grid cells along the longest axis of the written shapes and figures "
+        "(None: 256 in 2D, 128 in 3D)")
+
+
+class RunConfig(_Strict):
+    """Everything a run needs besides the problem geometry."""
+
+    problem: str = Field("", description="built-in problem name or the spec file's path")
+    preset: str | None = Field(None, description="the problem preset the run started from")
+    seed: int = Field(0, description="seed of the initialisation and of every sample")
+    device: str = Field("cpu", description="cpu or cuda[:N]")
+    model: ModelConfig = ModelConfig()
+    latents: LatentConfig = LatentConfig()
+    losses: LossesConfig = LossesConfig()
+    sampling: SamplingConfig = SamplingConfig()
+    diversity: DiversityConfig = DiversityConfig()
+    connectedness: ConnectednessConfig = ConnectednessConfig()
+    balancing: BalancingConfig = BalancingConfig()
+    training: TrainingConfig = TrainingConfig()
+    params: TaskParams = Field(ShapeParams(), description="task-specific parameters; `kind` selects the group")
+    output: OutputConfig = OutputConfig()
+
+    @property
+    def kind(self) -> str:
+        """The task kind (``params.kind``)."""
+        return self.params.kind
+
+    @property
+    def torch_dtype(self) -> torch.dtype:
+        """``training.dtype`` as a torch dtype."""
+        return DTYPES[self.training.dtype]
+
+
+# --- merging, overrides, validation ----------------------------------------------------------------
+
+
+def deep_merge(base: dict, over: dict) -> dict:
+    """Recursive dict merge (``over`` wins); neither input is modified."""
+    out = copy.deepcopy(base)
+    for k, v in over.items():
+        if isinstance(v, dict) and isinstance(out.get(k), dict):
+            out[k] = deep_merge(out[k], v)
+        else:
+            out[k] = copy.deepcopy(v)
+    return out
+
+
+def nested(flat: dict[str, Any]) -> dict:
+    """``{"a.b": 1}`` -> ``{"a": {"b": 1}}``."""
+    out: dict = {}
+    for key, val in flat.items():
+        node = out
+        parts = key.split(".")
+        for p in parts[:-1]:
+            node = node.setdefault(p, {})
+        node[parts[-1]] = val
+    return out
+
+
+def parse_set(items: list[str]) -> dict:
+    """``["a.b=1", "c=x"]`` -> nested dict with YAML-parsed values. Raises ConfigError."""
+    out: dict = {}
+    for item in items:
+        if "=" not in item:
+            raise ConfigError(f"--set {item!r}: expected key=value")
+        key, raw = item.split("=", 1)
+        key = key.strip()
+        if not key or any(not p for p in key.split(".")):
+            raise ConfigError(f"--set {item!r}: empty key")
+        try:
+            val = yaml.safe_load(raw) if raw.strip() else ""
+        except yaml.YAMLError:
+            val = raw
+        node = out
+        parts = key.split(".")
+        for p in parts[:-1]:
+            node = node.setdefault(p, {})
+            if not isinstance(node, dict):
+                raise ConfigError(f"--set {item!r}: {p} is set twice")
+        node[parts[-1]] = val
+    return out
+
+
+def one_line(e: ValidationError, data: Any, prefix: str = "") -> str:
+    """``config field '<path>': <what is wrong>`` for the first error of ``e`` (``prefix`` is put in
+    front of the path, e.g. ``params.`` when a task group is validated on its own)."""
+    err = e.errors()[0]
+    path = field_path(err.get("loc", ()), data, tags=TASK_KINDS)
+    path = prefix + path if path != "<root>" else (prefix.rstrip(".") or path)
+    return f"config field '{path}': {field_message(err)}"
+
+
+def build_config(*layers: dict) -> RunConfig:
+    """Merge partial config dicts in order and validate. Raises :class:`ConfigError` (one line)."""
+    merged: dict = {}
+    for layer in layers:
+        if layer:
+            merged = deep_merge(merged, layer)
+    try:
+        return RunConfig.model_validate(merged)
+    except ValidationError as e:
+        raise ConfigError(one_line(e, merged)) from None
+
+
+def with_overrides(cfg: RunConfig, *layers: dict) -> RunConfig:
+    """``cfg`` with further partial dicts merged on top (validated again)."""
+    return build_config(config_to_dict(cfg), *layers)
+
+
+def parse_task_params(kind: str, params: dict | None) -> ShapeParams | MirrorParams | GrayScottParams:
+    """Validate ``params`` (without its ``kind``) as the parameter group of ``kind``.
+
+    Raises:
+        ConfigError: one line, ``config field 'params.<key>': <what is wrong>``.
+    """
+    data = {**(params or {}), "kind": kind}
+    model = _PARAM_TYPES.get(kind)
+    if model is None:
+        raise ConfigError(f"config field 'params.kind': unknown task kind {kind!r} (one of {', '.join(TASK_KINDS)})")
+    try:
+        return model.model_validate(data)
+    except ValidationError as e:
+        raise ConfigError(one_line(e, data, prefix="params.")) from None
+
+
+def config_to_dict(cfg: RunConfig) -> dict:
+    """The config as plain data (what ``config.yaml`` holds)."""
+    return cfg.model_dump(mode="json")

@@ -1,0 +1,543 @@
+"""The metrics of the paper's Appendix B.1, measured on extracted shapes.
+
+Names (the keys of ``metrics.json``) and estimators:
+
+* ``volume_outside`` = vol(Omega \\ E) / vol(X \\ E): trapezoid-rule volumes of grid-node masks
+  (0 when E fills X).
+* ``boundary_overlap`` = vol(Omega cap dE) / vol(dE): the design region's boundary is sampled
+  (nearly) uniformly by projecting the nodes of a band ``|sdf_E| < h`` (on the grid extended four
+  nodes beyond X, so the part of dE on the domain faces is sampled like the rest) onto ``sdf_E = 0``
+  with two Newton steps (finite-difference gradients), each weighted by the hat function
+  ``1 - |sdf_E| / h`` of its node; the metric is the weighted fraction of these samples
+  in the shape or within one grid spacing of it (``f / |grad f| <= h``, multilinear interpolation
+  of the grid values, exact near the shape's boundary): a shape boundary that coincides with dE
+  counts, as it must for shapes that fill E up to its boundary.
+  Hat functions sum to one along every grid line, so the weight per unit area of dE does not depend
+  on where dE lies between the nodes (exactly for faces normal to an axis, on average otherwise),
+  and the samples are uniform by area up to O(h * curvature).
+* ``interface_cd1`` = CD1(dOmega, I) (equation 4): root mean square of the distances from interface
+  samples to the extracted boundary of ``Omega cap X`` (contour / mesh, exact point-to-element
+  distance).
+* ``b0``, ``b0_in_design_region``: face-connected components of the grid nodes of Omega and of
+  Omega cap E (scipy.ndimage.label; see :mod:`ginn.surface` for the connectivity convention).
+* ``disconnected_volume``, ``disconnected_volume_in_design_region``: volume of all components but
+  the largest, over vol(E).
+* ``connected_interfaces_share`` = CI / n_I: interface component ``c`` touches shape component
+  ``C`` when an interface sample of ``c`` lies within ``eps = 0.01 * unit_scale`` of ``C``'s
+  boundary or inside ``C``; CI is the largest number of interface components touching one shape
+  component (components are global over all of ``problem.interfaces``).
+* ``surface_strain`` (equation 7): mean over area-uniform samples of the zero level set (projected
+  onto ``f = 0`` by Newton steps) of the surface strain ``kappa_1^2 + kappa_2^2`` (2D: ``kappa^2``),
+  each clipped at 1000.
+* ``diversity_mean`` (equation 6 with CD2 of equation 5): from the matrix of two-sided chamfer
+  discrepancies between the shapes' boundaries, each side estimated from area-uniform samples of
+  one shape to the other's extracted boundary (exact point-to-element distance).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from .. import fields
+from ..config import STRAIN_CLIP
+from ..extract.boundary import Boundary, extract_boundary
+from ..extract.grid import Grid, interpolate, label_components, make_grid
+from ..extract.sampling import field_dtype_device, sample_field
+from ..fields import Field, as_field
+from ..geometry.base import Box, Region
+from ..geometry.mesh import closest_on_segments, closest_on_triangles
+from ..levelset import project_to_zero
+from ..problems.problem import Problem
+
+__all__ = [
+    "METRIC_NAMES",
+    "MetricContext",
+    "ExtractedShape",
+    "prepare_context",
+    "extract_shape",
+    "shape_metrics",
+    "volume_outside",
+    "boundary_overlap",
+    "interface_cd1",
+    "component_volumes",
+    "disconnected_volume",
+    "connected_interfaces_share",
+    "surface_strain",
+    "chamfer_matrix",
+    "diversity_from_matrix",
+    "diversity_mean",
+]
+
+#: Per-shape metric names, in the order of the paper's tables.
+METRIC_NAMES = (
+    "b0",
+    "b0_in_design_region",
+    "disconnected_volume",
+    "disconnected_volume_in_design_region",
+    "connected_interfaces_share",
+    "interface_cd1",
+    "boundary_overlap",
+    "volume_outside",
+    "surface_strain",
+)
+
+
+
+class _BoxRegion(Region):
+    """The domain box as a region (the design region when a problem has none)."""
+
+    def __init__(self, box: Box):
+        self.box = box
+        self.dim = box.dim
+
+    def sdf(self, x: Tensor) -> Tensor:
+        lo, hi = self.box.tensors(x.device, x.dtype)
+        c, r = (lo + hi) / 2, (hi - lo) / 2
+        q = (x - c).abs() - r
+        return q.clamp_min(0).norm(dim=-1) + q.max(dim=-1).values.clamp_max(0)
+
+
+def _region_sdf(region: Region, x: np.ndarray, chunk: int = 1 << 18) -> np.ndarray:
+    out = np.empty(x.shape[0])
+    with torch.no_grad():
+        for s in range(0, x.shape[0], chunk):
+            out[s : s + chunk] = region.sdf(torch.as_tensor(x[s : s + chunk], dtype=torch.float64)).double().numpy()
+    return out
+
+
+# --- context shared by all shapes of a problem ------------------------------------------------------
+
+
+@dataclass
+class MetricContext:
+    """Everything about a problem that the metrics need, computed once on the evaluation grid.
+
+    Attributes:
+        problem: the problem.
+        grid: the evaluation grid over the domain.
+        weights: trapezoid node weights ``(grid.shape)`` (float32).
+        in_design: ``(grid.shape)`` bool, node in E.
+        vol_design, vol_outside_design: vol(E) and vol(X \\ E).
+        design_boundary_points: ``(m, d)`` near-uniform samples of dE, with
+            ``design_boundary_weights`` ``(m,)``.
+        interface_points: ``(q, d)`` interface samples; ``interface_component``: ``(q,)`` global
+            component index; ``n_interface_components``: n_I.
+        eps: the connection tolerance (0.01 * unit_scale).
+    """
+
+    problem: Problem
+    grid: Grid
+    weights: np.ndarray
+    in_design: np.ndarray
+    vol_design: float
+    vol_outside_design: float
+    design_boundary_points: np.ndarray
+    design_boundary_weights: np.ndarray
+    interface_points: np.ndarray
+    interface_component: np.ndarray
+    n_interface_components: int
+    eps: float
+
+
+def _design_boundary_samples(
+    region: Region, grid: Grid, sdf_ext: np.ndarray, ext: Grid, n_max: int, rng
+) -> tuple[np.ndarray, np.ndarray]:
+    """Near-uniform samples of dE: band nodes ``|sdf| < h`` projected onto ``sdf = 0``, weighted by
+    the hat function ``1 - |sdf| / h`` (hat functions sum to one along every grid line, so a face at
+    any offset from the nodes gets the same total weight per area)."""
+    h = float(grid.spacing.min())
+    flat_sdf = sdf_ext.reshape(-1)
+    band = np.flatnonzero(np.abs(flat_sdf) < h)
+    if band.size == 0:
+        return np.zeros((0, grid.dim)), np.zeros(0)
+    if band.size > n_max:
+        band = np.sort(rng.choice(band, size=n_max, replace=False))
+    w = 1.0 - np.abs(flat_sdf[band].astype(np.float64)) / h
+    x = ext.points(band)
+    step = 0.25 * h
+    for _ in range(2):
+        s0 = _region_sdf(region, x)
+        g = np.empty_like(x)
+        for a in range(grid.dim):
+            e = np.zeros(grid.dim)
+            e[a] = step
+            g[:, a] = (_region_sdf(region, x + e) - _region_sdf(region, x - e)) / (2 * step)
+        g2 = np.maximum((g * g).sum(1), 1e-12)
+        x = x - (s0 / g2)[:, None] * g
+    return x, w
+
+
+def prepare_context(
+    problem: Problem,
+    resolution: int,
+    *,
+    n_interface_samples: int = 4096,
+    n_design_boundary_samples: int = 50_000,
+    seed: int = 0,
+) -> MetricContext:
+    """Precompute the design-region masks, dE samples and interface samples for ``problem``.
+
+    Arguments:
+        problem: the problem (domain, design region, interfaces, unit scale).
+        resolution: cells along the longest axis of the domain.
+        n_interface_samples: interface samples, split between interfaces by measure.
+        n_design_boundary_samples: at most this many samples of dE.
+        seed: for the samples.
+    """
+    grid = make_grid(problem.domain, resolution)
+    rng = np.random.default_rng(seed)
+    region = problem.design_region if problem.design_region is not None else _BoxRegion(problem.domain)
+    ext = grid.extended(4)
+    # adaptive: exact |sdf_E| near dE (the band below is inside the refined cells), sign elsewhere
+    sdf_ext = sample_field(as_field(region.sdf), ext, None, dtype=torch.float32, device="cpu")
+    inner = tuple(slice(4, -4) for _ in range(grid.dim))
+    in_design = sdf_ext[inner] <= 0
+    weights = grid.node_weights()
+    vol_E = float(weights[in_design].sum(dtype=np.float64))
+    vol_out = float(weights[~in_design].sum(dtype=np.float64)) if problem.design_region is not None else 0.0
+    dE, dE_w = _design_boundary_samples(region, grid, sdf_ext, ext, n_design_boundary_samples, rng)
+    del sdf_ext
+
+    pts, comps = [], []
+    offset = 0
+    measures = [max(float(i.measure()), 0.0) for i in problem.interfaces]
+    total = sum(measures)
+    gen = torch.Generator().manual_seed(seed)
+    for itf, m in zip(problem.interfaces, measures):
+        n = max(16, int(round(n_interface_samples * (m / total if total > 0 else 1.0 / len(measures)))))
+        x, _ = itf.sample(n, generator=gen, dtype=torch.float64)
+        pts.append(x.double().cpu().numpy())
+        comps.append(itf.component_of(x).cpu().numpy().astype(np.int64) + offset)
+        offset += int(itf.n_components)
+    ip = np.concatenate(pts) if pts else np.zeros((0, grid.dim))
+    ic = np.concatenate(comps) if comps else np.zeros(0, dtype=np.int64)
+    return MetricContext(
+        problem=problem,
+        grid=grid,
+        weights=weights,
+        in_design=in_design,
+        vol_design=vol_E,
+        vol_outside_design=vol_out,
+        design_boundary_points=dE,
+        design_boundary_weights=dE_w,
+        interface_points=ip,
+        interface_component=ic,
+        n_interface_components=offset,
+        eps=0.01 * float(problem.unit_scale),
+    )
+
+
+# --- one shape ----------------------------------------------------------------------------------------
+
+
+@dataclass
+class ExtractedShape:
+    """One shape on the evaluation grid.
+
+    Attributes:
+        values: node values ``(grid.shape)``; ``inside = values <= 0``.
+        boundary: the closed extracted boundary.
+        labels: face-connected component labels of the inside nodes (0 = outside); ``n_labels``.
+    """
+
+    values: np.ndarray
+    boundary: Boundary
+    labels: np.ndarray
+    n_labels: int
+
+    @property
+    def inside(self) -> np.ndarray:
+        return self.values <= 0
+
+
+def extract_shape(
+    field: Field, z: Tensor | None, grid: Grid, *, adaptive: bool = True, timings: dict | None = None
+) -> ExtractedShape:
+    """Sample ``field(., z)`` on ``grid``, extract its closed boundary and label its components
+    (``timings``, when given, receives the seconds of the three steps)."""
+    import time
+
+    t0 = time.perf_counter()
+    values = sample_field(field, grid, z, adaptive=adaptive)
+    t1 = time.perf_counter()
+    boundary = extract_boundary(values, grid, close=True)
+    t2 = time.perf_counter()
+    labels, n = label_components(values <= 0)
+    t3 = time.perf_counter()
+    if timings is not None:
+        for k, v in (("extract.sample_field", t1 - t0), ("extract.marching", t2 - t1), ("extract.label", t3 - t2)):
+            timings[k] = timings.get(k, 0.0) + v
+    return ExtractedShape(values, boundary, labels, n)
+
+
+def volume_outside(inside: np.ndarray, in_design: np.ndarray, weights: np.ndarray, vol_outside_design: float) -> float:
+    """vol(Omega \\ E) / vol(X \\ E) from node masks (0 when X \\ E is empty)."""
+    if vol_outside_design <= 0:
+        return 0.0
+    return float(weights[inside & ~in_design].sum(dtype=np.float64)) / vol_outside_design
+
+
+def boundary_overlap(
+    values: np.ndarray,
+    grid: Grid,
+    design_boundary_points: np.ndarray,
+    tol: float | None = None,
+    weights: np.ndarray | None = None,
+) -> float | None:
+    """Fraction of the dE samples lying in the shape, up to ``tol`` (default: one grid spacing).
+
+    A sample ``x`` counts when ``f(x) / |grad f(x)| <= tol`` (grid interpolation, central
+    differences of half a spacing), i.e. when it is inside or within about ``tol`` of the shape, so
+    that a shape boundary coinciding with dE (a shape filling the design region up to its boundary,
+    as at interfaces lying on dE) counts, robustly against rounding.
+    """
+    x = design_boundary_points
+    if x.shape[0] == 0:
+        return None
+    h = grid.spacing
+    tol = float(h.min()) if tol is None else float(tol)
+    f = interpolate(values, grid, x)
+    g2 = np.zeros_like(f)
+    for a in range(grid.dim):
+        e = np.zeros(grid.dim)
+        e[a] = 0.5 * h[a]
+        da = (interpolate(values, grid, x + e) - interpolate(values, grid, x - e)) / h[a]
+        g2 += da * da
+    inside = (f <= 0) | (f <= tol * np.sqrt(g2))
+    if weights is None:
+        return float(np.mean(inside))
+    return float(np.sum(weights * inside) / max(float(np.sum(weights)), 1e-300))
+
+
+def interface_cd1(boundary: Boundary, interface_points: np.ndarray) -> float | None:
+    """Equation 4: ``sqrt(mean_x dist(x, dOmega)^2)`` over interface samples ``x``."""
+    if interface_points.shape[0] == 0:
+        return None
+    if boundary.n_elements == 0:
+        return float("inf")
+    d = boundary.distance(interface_points)
+    return float(np.sqrt(np.mean(d * d)))
+
+
+def component_volumes(labels: np.ndarray, n: int, weights: np.ndarray) -> np.ndarray:
+    """Volume of each labelled component, ``(n,)`` (label ``i + 1`` -> entry ``i``)."""
+    if n == 0:
+        return np.zeros(0)
+    return np.bincount(labels.reshape(-1), weights=weights.reshape(-1), minlength=n + 1)[1:]
+
+
+def disconnected_volume(volumes: np.ndarray, vol_design: float) -> float:
+    """Volume of all components but the largest, over vol(E)."""
+    if volumes.size <= 1 or vol_design <= 0:
+        return 0.0
+    return float((volumes.sum() - volumes.max()) / vol_design)
+
+
+def _vertex_labels(shape: ExtractedShape, grid: Grid) -> np.ndarray:
+    """Component label of each boundary vertex: that of the inside end of its grid edge."""
+    V = shape.boundary.vertices
+    if V.shape[0] == 0:
+        return np.zeros(0, dtype=np.int64)
+    cells = np.asarray(grid.cells)
+    idx = np.clip(grid.to_index(V), 0, cells)
+    lo = np.clip(np.floor(idx + 1e-6).astype(np.int64), 0, cells)
+    hi = np.clip(np.ceil(idx - 1e-6).astype(np.int64), 0, cells)
+    lab_lo = shape.labels[tuple(lo.T)]
+    lab_hi = shape.labels[tuple(hi.T)]
+    return np.where(lab_lo > 0, lab_lo, lab_hi).astype(np.int64)
+
+
+def connected_interfaces_share(shape: ExtractedShape, ctx: MetricContext) -> float | None:
+    """CI / n_I (see the module docstring)."""
+    nI = ctx.n_interface_components
+    x, comp = ctx.interface_points, ctx.interface_component
+    if nI == 0 or x.shape[0] == 0:
+        return None
+    if shape.n_labels == 0:
+        return 0.0
+    b = shape.boundary
+    pairs = []  # (interface component, shape label)
+    if b.n_elements:
+        vlab = _vertex_labels(shape, ctx.grid)
+        elab = vlab[b.elements].max(axis=1)
+        cent = b.vertices[b.elements].mean(axis=1)
+        rad = float(np.linalg.norm(b.vertices[b.elements] - cent[:, None, :], axis=-1).max())
+        lists = b.centroid_tree().query_ball_point(x, r=ctx.eps + rad)
+        lens = np.fromiter((len(li) for li in lists), dtype=np.int64, count=len(lists))
+        if lens.sum():
+            qi = np.repeat(np.arange(x.shape[0]), lens)
+            ei = np.fromiter((e for li in lists for e in li), dtype=np.int64, count=int(lens.sum()))
+            sub = Boundary(b.vertices, b.elements[ei], b.on_level_set)
+            # exact distance from each candidate pair
+            d = _pair_distance(sub, x[qi])
+            ok = d <= ctx.eps
+            pairs.append(np.stack([comp[qi[ok]], elab[ei[ok]]], axis=1))
+    # samples inside the shape belong to the component of a neighbouring inside node
+    inside = interpolate(shape.values, ctx.grid, x) <= 0
+    if inside.any():
+        idx = np.clip(np.rint(ctx.grid.to_index(x[inside])).astype(np.int64), 0, np.asarray(ctx.grid.cells))
+        lab = shape.labels[tuple(idx.T)]
+        good = lab > 0
+        pairs.append(np.stack([comp[inside][good], lab[good]], axis=1))
+    if not pairs:
+        return 0.0
+    P = np.unique(np.concatenate(pairs), axis=0)
+    P = P[P[:, 1] > 0]
+    if P.shape[0] == 0:
+        return 0.0
+    counts = np.bincount(P[:, 1])
+    return float(counts.max()) / nI
+
+
+def _pair_distance(sub: Boundary, x: np.ndarray) -> np.ndarray:
+    """Distance from ``x[i]`` to element ``i`` of ``sub`` (pairwise), ``(q,)``."""
+    V, E = sub.vertices, sub.elements
+    if sub.dim == 2:
+        c = closest_on_segments(x, V[E[:, 0]], V[E[:, 1]])
+    else:
+        c = closest_on_triangles(x, V[E[:, 0]], V[E[:, 1]], V[E[:, 2]])
+    return np.linalg.norm(c - x, axis=-1)
+
+
+def surface_strain(
+    field: Field,
+    z: Tensor | None,
+    boundary: Boundary,
+    *,
+    n_samples: int = 2048,
+    clip: float = STRAIN_CLIP,
+    rng: np.random.Generator | None = None,
+    step_cap: float | None = None,
+    dtype: torch.dtype | None = None,
+) -> float | None:
+    """Equation 7: mean over zero-level-set samples of ``min(kappa_1^2 + kappa_2^2, clip)``.
+
+    Samples are area-uniform on the level-set part of the extracted boundary, moved onto ``f = 0``
+    by two Newton steps (each at most ``step_cap`` long); Hessians come from
+    :func:`ginn.fields.evaluate` and the strain from :func:`ginn.fields.surface_strain`.
+    """
+    rng = rng or np.random.default_rng(0)
+    x = boundary.sample(n_samples, rng, level_set_only=True)
+    if x.shape[0] == 0:
+        return None
+    dt, dev = field_dtype_device(field, z)
+    dt = dtype or dt
+    xt = torch.as_tensor(x, dtype=dt, device=dev)
+    zz = None if z is None else z.reshape(1, -1).to(dt).expand(xt.shape[0], -1)
+    proj = project_to_zero(field, xt, zz, steps=2, tol=float("inf"), max_step=step_cap)
+    xp = torch.where(torch.isfinite(proj.x).all(dim=1, keepdim=True), proj.x, xt)
+    v = fields.evaluate(field, xp, zz, grad=False, hessian_at=True, create_graph=False)
+    s = fields.surface_strain(v.hessian_grad, v.hessian)
+    s = torch.nan_to_num(s, nan=clip, posinf=clip).clamp(max=clip)
+    return float(s.double().mean())
+
+
+# --- sets of shapes -------------------------------------------------------------------------------
+
+
+def chamfer_matrix(boundaries: list[Boundary], samples: list[np.ndarray]) -> np.ndarray:
+    """Two-sided chamfer discrepancies (equation 5), ``(S, S)``.
+
+    ``A[i, j] = mean_{x in samples[j]} dist(x, boundaries[i])^2`` = CD1(Omega_i, Omega_j)^2 and
+    ``D = sqrt(A + A^T)``.
+    """
+    S = len(boundaries)
+    A = np.zeros((S, S))
+    for i in range(S):
+        for j in range(S):
+            if i == j:
+                continue
+            if samples[j].shape[0] == 0 or boundaries[i].n_elements == 0:
+                A[i, j] = np.inf
+                continue
+            d = boundaries[i].distance(samples[j])
+            A[i, j] = float(np.mean(d * d))
+        boundaries[i]._tree = None  # free the KD-tree of row i
+    return np.sqrt(A + A.T)
+
+
+def diversity_from_matrix(D: np.ndarray) -> float | None:
+    """Equation 6: ``[mean_i ((1/(N-1)) sum_{j != i} D_ij)^(1/2)]^2`` (None for N < 2)."""
+    N = D.shape[0]
+    if N < 2:
+        return None
+    off = D.sum(axis=1) - np.diag(D)
+    return float(np.mean(np.sqrt(off / (N - 1))) ** 2)
+
+
+def diversity_mean(boundaries: list[Boundary], n_samples: int = 2048, seed: int = 0) -> float | None:
+    """``diversity_mean`` of a set of shapes from their boundaries (None for fewer than two)."""
+    if len(boundaries) < 2:
+        return None
+    samples = [b.sample(n_samples, np.random.default_rng(seed)) for b in boundaries]
+    return diversity_from_matrix(chamfer_matrix(boundaries, samples))
+
+
+def shape_metrics(
+    shape: ExtractedShape,
+    ctx: MetricContext,
+    field: Field,
+    z: Tensor | None,
+    *,
+    n_strain_samples: int = 2048,
+    seed: int = 0,
+    timings: dict | None = None,
+) -> dict:
+    """All per-shape metrics of one shape, ``{name: value}`` with the names of :data:`METRIC_NAMES`
+    (``None`` where a metric does not apply, e.g. no interfaces). ``timings``, when given, receives
+    the seconds spent per metric."""
+    import time
+
+    out: dict = {}
+
+    def timed(name, fn):
+        t = time.perf_counter()
+        out[name] = fn()
+        if timings is not None:
+            timings[name] = timings.get(name, 0.0) + time.perf_counter() - t
+
+    inside = shape.inside
+    vols = None
+
+    def _b0_all():
+        nonlocal vols
+        vols = component_volumes(shape.labels, shape.n_labels, ctx.weights)
+        return int(shape.n_labels)
+
+    timed("b0", _b0_all)
+    lab_E, n_E = None, 0
+
+    def _b0_E():
+        nonlocal lab_E, n_E
+        lab_E, n_E = label_components(inside & ctx.in_design)
+        return int(n_E)
+
+    timed("b0_in_design_region", _b0_E)
+    timed("disconnected_volume", lambda: disconnected_volume(vols, ctx.vol_design))
+    timed(
+        "disconnected_volume_in_design_region",
+        lambda: disconnected_volume(component_volumes(lab_E, n_E, ctx.weights), ctx.vol_design),
+    )
+    timed("connected_interfaces_share", lambda: connected_interfaces_share(shape, ctx))
+    timed("interface_cd1", lambda: interface_cd1(shape.boundary, ctx.interface_points))
+    timed(
+        "boundary_overlap",
+        lambda: boundary_overlap(shape.values, ctx.grid, ctx.design_boundary_points, weights=ctx.design_boundary_weights),
+    )
+    timed("volume_outside", lambda: volume_outside(inside, ctx.in_design, ctx.weights, ctx.vol_outside_design))
+    timed(
+        "surface_strain",
+        lambda: surface_strain(
+            field,
+            z,
+            shape.boundary,
+            n_samples=n_strain_samples,
+            rng=np.random.default_rng(seed),
+            step_cap=float(ctx.grid.spacing.max()),
+        ),
+    )
+    return out

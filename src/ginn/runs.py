@@ -1,0 +1,289 @@
+"""A run from start to finish: train, resume, load, evaluate, export and plot a run directory.
+
+The one workflow behind the CLI (``ginn train``, ``resume``, ``eval``, ``export``, ``plot``), the
+Python front door (:func:`fit`, :func:`evaluate`) and every sweep trial::
+
+    spec, cfg = resolve("obstacle", "demo", {"training": {"iterations": 200}})   # spec -> config
+    outcome = train(spec, cfg)                          # task -> run directory -> trainer -> results
+    run = load_run(outcome.run_dir)                     # the trained model back from the checkpoint
+    metrics = evaluate(outcome.run_dir)                 # what `ginn eval` writes to metrics.json
+
+Kind-specific work (what to evaluate, export or draw) is the task's (:class:`ginn.train.task.Task`
+hooks); nothing here switches on the problem kind.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from torch import Tensor, nn
+
+from .config import RunConfig, build_config, deep_merge, parse_set, with_overrides
+from .errors import GinnError
+from .problems import ProblemSpec, load_spec
+from .tasks import make_task
+from .train.checkpoint import load_checkpoint
+from .train.distributed import DistContext, on_main
+from .train.rundir import new_run_dir, read_config_dict, write_run_files, write_status
+from .train.task import Task
+from .train.trainer import Trainer
+
+__all__ = [
+    "Run", "Outcome", "is_spec_file", "resolve", "train", "resume", "fit", "load_run",
+    "evaluate", "export", "plot",
+]
+
+Say = Callable[[str], None]
+
+
+def _silent(msg: str) -> None:
+    pass
+
+
+def is_spec_file(problem: str | Path) -> bool:
+    """Whether ``problem`` names a spec file (``.yaml``/``.yml``) rather than a built-in problem."""
+    return Path(str(problem)).suffix in (".yaml", ".yml")
+
+
+def resolve(problem: str | Path, preset: str | None = None, *overrides: dict,
+            sets: list[str] | None = None) -> tuple[ProblemSpec, RunConfig]:
+    """The spec of ``problem`` (a built-in name or a spec file) and its run configuration: the spec's
+    defaults, the preset, each override dict, then ``sets`` (``["key=value", ...]``).
+
+    ``problem`` in the config is the built-in name, or the spec file's absolute path, so that the
+    run directory can rebuild the problem.
+    """
+    spec = load_spec(problem)
+    head = {"problem": str(Path(problem).resolve()) if is_spec_file(problem) else spec.name}
+    return spec, spec.config(preset, head, *overrides, parse_set(sets or []))
+
+
+@dataclass
+class Outcome:
+    """How a training (or resumed training) ended.
+
+    Attributes:
+        status: ``completed``, ``interrupted`` (SIGINT/SIGTERM; a checkpoint was written) or the
+            status of a hook that stopped the run (e.g. ``pruned``).
+        step, seconds: where it stopped and the training time.
+        run_dir: the run directory.
+        task, model: the trained task and model.
+        results: the result files written at the end (empty without results or when not completed).
+        reason: why a hook stopped the run.
+    """
+
+    status: str
+    step: int
+    seconds: float
+    run_dir: Path
+    task: Task
+    model: nn.Module
+    results: list[Path] = field(default_factory=list)
+    reason: str = ""
+
+
+def _spec_file(spec: ProblemSpec) -> Path | None:
+    return Path(spec.source) if Path(spec.source).is_file() else None
+
+
+def _finish(trainer: Trainer, task: Task, run_dir: Path, results: bool, say: Say) -> Outcome:
+    """Train to the end, keep ``status.json`` true, and write the result files."""
+    if not trainer.is_main:  # distributed: ranks > 0 train and write nothing
+        res = trainer.train()
+        return Outcome(res.status, res.step, res.seconds, run_dir, task, trainer.model, reason=res.reason)
+    write_status(run_dir, "running", trainer.step, trainer.elapsed)
+    res = trainer.train()
+    write_status(run_dir, res.status, res.step, res.seconds)
+    out = Outcome(res.status, res.step, res.seconds, run_dir, task, trainer.model, reason=res.reason)
+    if res.status != "completed":  # interrupted (a checkpoint was written) or stopped by a hook
+        return out
+    say(f"trained {res.step} iterations in {res.seconds:.1f} s")
+    if results:
+        out.results = task.finalize(trainer.model, run_dir)
+        write_status(run_dir, "completed", res.step, res.seconds)
+        if out.results:
+            say("results:")
+            for p in out.results:
+                say(f"  {p}")
+    say(f"run directory: {run_dir}")
+    return out
+
+
+def train(
+    spec: ProblemSpec,
+    cfg: RunConfig,
+    out: str | Path | None = None,
+    *,
+    progress: bool = True,
+    results: bool = True,
+    hooks: list[Callable] | None = None,
+    dist: DistContext | None = None,
+    say: Say = _silent,
+    prepare: Callable[[Path], None] | None = None,
+) -> Outcome:
+    """Train ``spec`` under ``cfg`` into a new run directory.
+
+    Arguments:
+        spec, cfg: the problem and its resolved configuration (:func:`resolve`).
+        out: the run directory (must be new or empty; default ``runs/<problem>-<timestamp>``).
+        progress: show a progress bar.
+        results: write the task's result files (shapes, figures) at the end.
+        hooks: ``hook(trainer, step, losses)`` after every step; a hook may raise
+            :class:`ginn.train.trainer.StopRun` to end the run with its status.
+        dist: the torchrun context (None: one process); only rank 0 writes.
+        say: where progress messages go (the CLI prints them).
+        prepare: called with the run directory after its files are written, before training.
+    """
+    task = make_task(spec, dist.localize(cfg) if dist is not None else cfg)
+    run_dir = on_main(dist, lambda: new_run_dir(spec.name, out))
+    main = dist is None or dist.is_main
+    if main:
+        write_run_files(run_dir, cfg, _spec_file(spec))
+        if prepare is not None:
+            prepare(run_dir)
+    where = cfg.device if dist is None else f"{dist.world} x {dist.device} ({dist.backend})"
+    (say if main else _silent)(
+        f"training {spec.name}" + (f" (preset {cfg.preset})" if cfg.preset else "") + f" on {where}; run directory {run_dir}")
+    trainer = Trainer(task, task.cfg, run_dir, progress=progress, hooks=hooks, dist=dist)
+    return _finish(trainer, task, run_dir, results, say if main else _silent)
+
+
+def _run_config(run_dir: Path, spec: ProblemSpec | None = None, *overrides: dict) -> tuple[ProblemSpec, RunConfig]:
+    """The spec and config of a run directory (a config without ``params.kind`` takes the spec's)."""
+    raw = read_config_dict(run_dir)
+    if spec is None:
+        spec = _recorded_spec(Path(run_dir), str(raw.get("problem", "")))
+    params = raw.get("params")
+    if not isinstance(params, dict) or "kind" not in params:
+        raw = deep_merge(raw, {"params": {"kind": spec.kind}})
+    return spec, build_config(raw, *overrides)
+
+
+def _recorded_spec(run_dir: Path, original: str) -> ProblemSpec:
+    """The spec a run trained: its copy ``problem.yaml``; the original when the copy names files
+    relative to the original spec's folder (or when there is no copy)."""
+    copy = run_dir / "problem.yaml"
+    if not copy.is_file():
+        return load_spec(original)
+    try:
+        return load_spec(copy)
+    except GinnError:
+        return load_spec(original)
+
+
+def resume(
+    run_dir: str | Path,
+    iterations: int | None = None,
+    *,
+    progress: bool = True,
+    results: bool = True,
+    dist: DistContext | None = None,
+    say: Say = _silent,
+) -> Outcome:
+    """Continue a run from its last checkpoint (up to ``iterations`` in total if given)."""
+    run_dir = Path(run_dir)
+    spec, cfg = _run_config(run_dir, None, {"training": {"iterations": iterations}} if iterations is not None else {})
+    cfg = dist.localize(cfg) if dist is not None else cfg
+    task = make_task(spec, cfg)
+    trainer = Trainer(task, cfg, run_dir, progress=progress, dist=dist)
+    if not trainer.resume():
+        raise GinnError(f"{run_dir}: no checkpoint to resume from")
+    (say if trainer.is_main else _silent)(f"resuming {run_dir} at iteration {trainer.step} of {cfg.training.iterations}")
+    return _finish(trainer, task, run_dir, results, say if trainer.is_main else _silent)
+
+
+@dataclass
+class Run:
+    """A loaded run: its config, problem spec, task and trained model (from the last checkpoint)."""
+
+    path: Path
+    config: RunConfig
+    spec: ProblemSpec
+    task: Task
+    model: nn.Module
+    step: int
+
+    @property
+    def latents(self) -> Tensor | None:
+        """The trained latent codes ``(S, k)``, or None for a single shape."""
+        return self.task.latents()
+
+
+def load_run(run_dir: str | Path, device: str | None = None) -> Run:
+    """Rebuild the task and model of a run directory and load the last checkpoint's weights."""
+    run_dir = Path(run_dir)
+    spec, cfg = _run_config(run_dir)
+    if device is not None and device != cfg.device:
+        cfg = with_overrides(cfg, {"device": device})
+    task = make_task(spec, cfg)
+    model = task.build_model().to(device=cfg.device, dtype=cfg.torch_dtype)
+    ck = load_checkpoint(run_dir / "checkpoints" / "last.pt", map_location=cfg.device)
+    model.load_state_dict(ck["model"])
+    task.load_state_dict(ck.get("task", {}))
+    model.eval()
+    return Run(run_dir, cfg, spec, task, model, int(ck["step"]))
+
+
+def fit(
+    problem: str | Path,
+    preset: str | None = None,
+    out: str | Path | None = None,
+    overrides: dict | None = None,
+    sets: list[str] | None = None,
+    progress: bool = True,
+    results: bool = True,
+) -> Run:
+    """Train a built-in problem (by name) or a spec file and write a run directory; what
+    ``ginn train`` does, returning the trained run.
+
+    Arguments:
+        problem: built-in name (``ginn.list_problems()``) or path to a YAML spec.
+        preset: named preset of the problem.
+        out: run directory (default ``runs/<problem>-<timestamp>``).
+        overrides: a partial config dict, e.g. ``{"training": {"iterations": 100}}``.
+        sets: ``["key=value", ...]`` overrides as on the command line.
+        progress: show a progress bar.
+        results: write shapes and figures at the end.
+
+    Returns:
+        the :class:`Run` of the finished (or interrupted) run.
+    """
+    spec, cfg = resolve(problem, preset, overrides or {}, sets=sets)
+    outcome = train(spec, cfg, out, progress=progress, results=results)
+    return load_run(outcome.run_dir)
+
+
+def _write_json(path: Path, data: dict) -> None:
+    path.write_text(json.dumps(data, indent=2, default=float))
+
+
+def evaluate(run_dir: str | Path, resolution: int | None = None, device: str | None = None) -> dict:
+    """The metrics of a run (what ``ginn eval`` prints), also written to ``RUN/metrics.json``."""
+    metrics, _ = evaluate_with_text(run_dir, resolution, device)
+    return metrics
+
+
+def evaluate_with_text(run_dir: str | Path, resolution: int | None = None, device: str | None = None) -> tuple[dict, str]:
+    """:func:`evaluate` and the task's readable text of the metrics."""
+    run = load_run(run_dir, device=device)
+    metrics = run.task.evaluate(run.model, resolution=resolution, out_dir=run.path)
+    _write_json(run.path / "metrics.json", metrics)
+    return metrics, run.task.format_metrics(metrics) + f"\n(written to {run.path / 'metrics.json'})"
+
+
+def export(run_dir: str | Path, latents: list[list[float]] | None = None, resolution: int | None = None,
+           mesh_format: str = "stl", out: str | Path | None = None) -> list[Path]:
+    """Meshes (3D) or contours (2D) of the trained latents, or of the given latent values, into
+    ``out`` (default ``RUN/export``)."""
+    run = load_run(run_dir)
+    out_dir = Path(out) if out else run.path / "export"
+    return run.task.export(run.model, latents or None, out_dir, resolution, mesh_format)
+
+
+def plot(run_dir: str | Path, resolution: int | None = None) -> list[Path]:
+    """The figures of a run (``ginn plot``)."""
+    run = load_run(run_dir)
+    return run.task.plot(run.model, run.path, resolution)

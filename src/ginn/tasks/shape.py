@@ -1,0 +1,364 @@
+"""Training task of a shape problem (obstacle, bracket, Plateau, user specs): the GINN losses.
+
+Per iteration and shape, fresh samples: uniform points in X (eikonal), points in X \\ E (design
+region), inside obstacles, on the interfaces (interface and normal), optionally in a band around
+the interfaces. All shapes and all point sets go through the network in one batched pass with
+gradients; Hessians are taken only at boundary points (curvature, strain), which are found by
+projecting the domain samples closest to ``f = 0`` onto the zero level set.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import torch
+from scipy.spatial import cKDTree
+from torch import Tensor, nn
+
+from .. import fields
+from ..config import LossTerm, RunConfig, default_resolution
+from ..errors import ConfigError, GinnError
+from ..eval.plateau import evaluate_plateau
+from ..eval.shapes import evaluate_shapes, format_table
+from ..extract.export import export_shapes
+from ..geometry import sampling
+from ..levelset import project_to_zero
+from ..losses import constraints as C
+from ..losses.diversity import aggregate, distance_matrix, diversity
+from ..models.factory import build_model
+from ..models.latents import fixed_latents, latent_dim, random_latents
+from ..problems.problem import Problem
+from ..topology import ConnectednessLossBase, make_connectedness_loss
+from ..train.distributed import DistContext, cross_values_sharded
+from ..train.task import Task
+from ..viz.plateau import write_plateau_results
+from ..viz.plot import plot_run
+
+
+class ShapeTask(Task):
+    """A GINN shape problem: a (generative) implicit shape trained from constraints.
+
+    Arguments:
+        problem: the geometry (domain, design region, interfaces, obstacles).
+        cfg, device, dtype: see :class:`ginn.train.task.Task`.
+
+    The problem's ``reference`` (``minimal-surface``: Plateau) adds the comparison with the
+    reference surface to the evaluation and to the result files.
+    """
+
+    kind = "shape"
+
+    def __init__(self, problem: Problem, cfg: RunConfig, device, dtype):
+        super().__init__(cfg, device, dtype)
+        self.problem = problem
+        self.d = problem.dim
+        self.Z = fixed_latents(cfg.latents, self.device, dtype)
+        self.lo, self.hi = problem.domain.tensors(self.device, dtype)
+        self._conn: ConnectednessLossBase | None = None
+        self._iface_cloud: cKDTree | None = None  # a dense sample of the interfaces
+        s = cfg.sampling
+        self.design_loss = C.DesignRegionLoss(power=cfg.losses.containment_power)
+        self.obstacle_loss = C.ObstacleLoss(power=cfg.losses.containment_power)
+        self.interface_loss = C.InterfaceLoss()
+        self.normal_loss = C.NormalLoss()
+        self.eikonal_loss = C.EikonalLoss()
+        self.curv_loss = C.MeanCurvatureLoss()
+        self.strain_loss = C.StrainLoss(clip=s.strain_clip)
+        self.has_normals = any(getattr(i, "has_normals", True) for i in problem.interfaces)
+        corners = sampling.interface_corners(problem.interfaces, self.device, dtype) if problem.interfaces else None
+        self.corners = corners if corners is not None and corners.shape[0] > 0 else None
+        self.dist: DistContext | None = None  # when trained data-parallel (see distribute)
+        self.shard: tuple[int, int] | None = None
+
+    @classmethod
+    def from_spec(cls, spec, cfg: RunConfig) -> ShapeTask:
+        """The task of a shape spec: its geometry built (meshes loaded, interfaces checked)."""
+        return cls(spec.build(), cfg, cfg.device, cfg.torch_dtype)
+
+    # --- Task API ----------------------------------------------------------------------------
+
+    def build_model(self) -> nn.Module:
+        return build_model(self.cfg.model, self.d, latent_dim(self.cfg.latents))
+
+    def terms(self) -> dict[str, LossTerm]:
+        L = self.cfg.losses
+        out = {
+            "interface": L.interface,
+            "eikonal": L.eikonal,
+            "mean_curvature": L.mean_curvature,
+            "strain": L.strain,
+            "connectedness": L.connectedness,
+        }
+        if self.problem.design_region is not None:
+            out["design_region"] = L.design_region
+        if self.problem.obstacles:
+            out["obstacle"] = L.obstacle
+        if self.has_normals:
+            out["normal"] = L.normal
+        if self.cfg.latents.n_shapes > 1:
+            out["diversity"] = L.diversity
+        if not self.problem.interfaces:
+            out.pop("interface")
+        return out
+
+    def latents(self) -> Tensor | None:
+        return self.Z
+
+    def state_dict(self) -> dict:
+        return {"connectedness": self._conn.state_dict()} if self._conn is not None else {}
+
+    def load_state_dict(self, state: dict) -> None:
+        if "connectedness" in state and state["connectedness"]:
+            self.connectedness_loss().load_state_dict(state["connectedness"])
+
+    def distribute(self, ctx: DistContext) -> None:
+        """Train only this rank's slice of the shapes (``ginn.train.distributed``)."""
+        if self.cfg.latents.n_shapes == 1:
+            raise ConfigError("distributed training shards the shapes of a generative model: set latents.n_shapes > 1")
+        self.dist, self.shard = ctx, ctx.shard(self.cfg.latents.n_shapes)
+
+    def connectedness_loss(self) -> ConnectednessLossBase:
+        if self._conn is None:
+            self._conn = make_connectedness_loss(
+                self.problem.domain,
+                self.problem.design_region if self.cfg.connectedness.restrict_to_design_region else None,
+                self.cfg.connectedness,
+                self.device,
+                self.dtype,
+            )
+        return self._conn
+
+    # --- sampling ----------------------------------------------------------------------------
+
+    def _step_latents(self, gen: torch.Generator) -> Tensor | None:
+        if self.cfg.latents.n_shapes == 1:
+            return None
+        if self.cfg.latents.random:
+            return random_latents(self.cfg.latents, gen, self.device, self.dtype)
+        return self.Z
+
+    def sample(self, S: int, active: set[str], gen: torch.Generator) -> dict[str, Tensor]:
+        """Fresh per-shape samples, each ``(S, n, d)`` (normals ``(S, n, d)``)."""
+        s, p, kw = self.cfg.sampling, self.problem, dict(device=self.device, dtype=self.dtype)
+        d = self.d
+        out: dict[str, Tensor] = {}
+        out["domain"] = sampling.sample_box(p.domain, S * s.n_domain, gen, **kw).reshape(S, -1, d)
+        if "design_region" in active and s.n_outside > 0:
+            out["outside"] = sampling.sample_outside(p.design_region, p.domain, S * s.n_outside, gen, **kw).reshape(S, -1, d)
+        if "obstacle" in active and s.n_obstacle > 0:
+            obs = [sampling.sample_inside(o, p.domain, S * s.n_obstacle // len(p.obstacles), gen, **kw) for o in p.obstacles]
+            out["obstacle"] = torch.cat([o.reshape(S, -1, d) for o in obs], dim=1)
+        if p.interfaces and ({"interface", "normal"} & active):
+            xi, ni = sampling.sample_interfaces(p.interfaces, S * s.n_interface, gen, **kw)
+            # the samplers return points grouped interface by interface: shuffle before splitting
+            # them among the shapes, or each shape would see only some of the interfaces
+            perm = self._perm(xi.shape[0], gen)
+            out["interface"], out["normals"] = xi[perm].reshape(S, -1, d), ni[perm].reshape(S, -1, d)
+        if s.n_band > 0 and p.interfaces and p.interface_band > 0:
+            xb = sampling.sample_band(p.interfaces, S * s.n_band, p.interface_band, gen, box=p.domain, **kw)
+            out["band"] = xb[self._perm(xb.shape[0], gen)].reshape(S, -1, d)
+        return out
+
+    def _perm(self, n: int, gen: torch.Generator) -> Tensor:
+        return torch.randperm(n, generator=gen, device=gen.device).to(self.device)
+
+    # --- losses ------------------------------------------------------------------------------
+
+    def loss_terms(self, model: nn.Module, step: int, active: set[str], gen: torch.Generator) -> dict[str, Tensor]:
+        Z = self._step_latents(gen)
+        S = 1 if Z is None else Z.shape[0]
+        pts = self.sample(S, active, gen)
+        if self.shard is not None:  # distributed: every rank samples all shapes, keeps its slice
+            lo, hi = self.shard
+            Z, pts, S = Z[lo:hi], {k: v[lo:hi] for k, v in pts.items()}, hi - lo
+        names = [k for k in ("domain", "band", "interface", "outside", "obstacle") if k in pts]
+        sizes = [pts[k].shape[1] for k in names]
+        X = torch.cat([pts[k] for k in names], dim=1)  # (S, N, d)
+        N = X.shape[1]
+        if Z is None:
+            Xf, Zf = X.reshape(-1, self.d), None
+        else:
+            Xf, Zf = fields.broadcast_latents(X, Z)
+        v = fields.evaluate(model, Xf, Zf, grad=True, create_graph=True)
+        f = v.f.reshape(S, N)
+        g = v.grad.reshape(S, N, self.d)
+        part_f = dict(zip(names, torch.split(f, sizes, dim=1)))
+        part_g = dict(zip(names, torch.split(g, sizes, dim=1)))
+        out: dict[str, Tensor] = {}
+        if "eikonal" in active:
+            ge = part_g["domain"] if "band" not in part_g else torch.cat([part_g["domain"], part_g["band"]], dim=1)
+            out["eikonal"] = self.eikonal_loss(ge.reshape(-1, self.d))
+        if "design_region" in active and "outside" in part_f:
+            E = self.problem.design_region
+            fo = part_f["outside"].reshape(-1) - self._containment_floor(pts["outside"], E, 1.0)
+            if self.cfg.sampling.band_containment and "band" in part_f:
+                # band points outside E join the outside samples: a denser estimate near the
+                # interfaces on dE (the mean is then no longer a uniform estimate over X \ E)
+                xb = pts["band"].reshape(-1, self.d)
+                out_b = ~E.contains(xb)
+                fb = part_f["band"].reshape(-1)[out_b] - self._containment_floor(xb[out_b], E, 1.0)
+                fo = torch.cat([fo, fb])
+            out["design_region"] = self.design_loss(fo)
+        if "obstacle" in active and "obstacle" in part_f:
+            fo = part_f["obstacle"].reshape(-1)
+            out["obstacle"] = self.obstacle_loss(fo - self._containment_floor(pts["obstacle"], self.problem.obstacles, -1.0))
+        if "interface" in active:
+            fi = part_f["interface"].reshape(-1)
+            if self.corners is not None and self.cfg.sampling.interface_corner_weight > 1:
+                fc = self._corner_values(model, Z)
+                w = torch.cat([torch.ones_like(fi), torch.full_like(fc, self.cfg.sampling.interface_corner_weight)])
+                out["interface"] = self.interface_loss(torch.cat([fi, fc]), w)
+            else:
+                out["interface"] = self.interface_loss(fi)
+        if "normal" in active:
+            ni = pts["normals"].reshape(-1, self.d)
+            has = ni.norm(dim=-1) > 0.5
+            out["normal"] = self.normal_loss(part_g["interface"].reshape(-1, self.d)[has], ni[has])
+        need_boundary = {"mean_curvature", "strain", "diversity"} & active
+        if need_boundary:
+            xb, mask = self.boundary_points(model, Z, pts["domain"], part_f["domain"], part_g["domain"])
+            out.update(self._boundary_losses(model, Z, xb, mask, active))
+        if "connectedness" in active:
+            margin = self.cfg.connectedness.margin
+            field = model if margin == 0 else fields.Shifted(model, margin)
+            out["connectedness"] = self.connectedness_loss()(field, Z)
+        return out
+
+    def _containment_floor(self, x: Tensor, regions, sign: float) -> Tensor | float:
+        """``losses.containment_slope`` times the distance of each sample ``x (S, n, d)`` into the
+        forbidden set: outside E (``sign = 1``: the design region's SDF) or into an obstacle
+        (``sign = -1``: minus the obstacle's SDF, the largest over the obstacles). A signed distance
+        field of any shape inside E is at least this distance there, so the floor is exact for
+        ``slope = 1``; returns 0 (the paper's loss) when the slope is 0. ``losses.containment_margin``
+        is subtracted from the distance (clamped at 0)."""
+        slope, margin = self.cfg.losses.containment_slope, self.cfg.losses.containment_margin
+        if slope == 0:
+            return 0.0
+        flat = x.reshape(-1, self.d)
+        regions = regions if isinstance(regions, (list, tuple)) else [regions]
+        depth = torch.stack([sign * r.sdf(flat) for r in regions]).amax(dim=0)
+        return slope * (depth - margin).clamp_min(0.0).detach()
+
+    def _corner_values(self, model: nn.Module, Z: Tensor | None) -> Tensor:
+        c = self.corners
+        if Z is None:
+            return model(c, None)
+        Xc, Zc = fields.broadcast_latents(c, Z)
+        return model(Xc, Zc)
+
+    def boundary_points(
+        self, model: nn.Module, Z: Tensor | None, xd: Tensor, fd: Tensor, gd: Tensor
+    ) -> tuple[Tensor, Tensor]:
+        """Per-shape points on ``f = 0``: the ``n_boundary`` domain samples with the smallest
+        ``|f| / |grad f|`` (distance estimate), moved by one Newton step with the values and
+        gradients already computed in the main pass (no extra evaluation), then by
+        ``sampling.projection_steps`` further Newton steps, which also check convergence.
+
+        Returns points ``(S, m, d)`` (detached) and a validity mask ``(S, m)``.
+        """
+        S = xd.shape[0]
+        m = min(self.cfg.sampling.n_boundary, xd.shape[1])
+        with torch.no_grad():
+            fd, gd = fd.detach(), gd.detach()
+            g2 = (gd * gd).sum(-1).clamp_min(1e-12)
+            dist = fd.abs() / g2.sqrt()
+            idx = dist.topk(m, dim=1, largest=False).indices  # (S, m)
+            take = lambda t: torch.gather(t, 1, idx[:, :, None].expand(S, m, t.shape[-1]))  # noqa: E731
+            step = (fd / g2)[:, :, None] * gd
+            x0 = take(xd.detach() - step)
+        X = x0.reshape(-1, self.d)
+        Zf = None if Z is None else fields.broadcast_latents(x0, Z)[1]
+        proj = project_to_zero(model, X, Zf, steps=self.cfg.sampling.projection_steps, tol=1e-3, bounds=(self.lo, self.hi))
+        return proj.x.reshape(S, m, self.d), proj.converged.reshape(S, m)
+
+    def _boundary_losses(self, model, Z, xb: Tensor, mask: Tensor, active: set[str]) -> dict[str, Tensor]:
+        out: dict[str, Tensor] = {}
+        S, m, d = xb.shape
+        out["_boundary_converged"] = mask.float().mean()
+        if {"mean_curvature", "strain"} & active:
+            sel = mask
+            Xf = xb.reshape(-1, d)
+            Zf = None if Z is None else Z[:, None, :].expand(S, m, Z.shape[-1]).reshape(-1, Z.shape[-1])
+            v = fields.evaluate(model, Xf, Zf, grad=False, hessian_at=sel.reshape(-1), create_graph=True)
+            gh, hh = v.hessian_grad, v.hessian
+            if "mean_curvature" in active:
+                out["mean_curvature"] = self.curv_loss(gh, hh)
+            if "strain" in active:
+                keep = self._away_from_interfaces(Xf[v.hessian_index], self.cfg.sampling.strain_interface_clearance)
+                out["strain"] = self.strain_loss(gh[keep], hh[keep])
+        if "diversity" in active and Z is not None:
+            dv = self.cfg.diversity
+            if dv.interface_clearance > 0:
+                away = self._away_from_interfaces(xb.reshape(-1, d), dv.interface_clearance)
+                mask = mask & away.reshape(S, m)
+            if self.dist is not None:  # all shapes' cross values, exact gradients
+                V, M = cross_values_sharded(model, xb, Z, mask, self.dist)
+                out["diversity"] = -aggregate(distance_matrix(V, M, dv.eps), dv.aggregation, dv.p)
+            else:
+                out["diversity"] = -diversity(model, xb, Z, mask, kind=dv.aggregation, p=dv.p, eps=dv.eps)
+        return out
+
+    def _away_from_interfaces(self, x: Tensor, c: float) -> Tensor:
+        """``(n,)``: whether each point of ``x (n, d)`` is farther than ``c`` from every interface."""
+        if c <= 0 or not self.problem.interfaces:
+            return torch.ones(x.shape[0], dtype=torch.bool, device=x.device)
+        if self._iface_cloud is None:  # a dense fixed sample of I and its KD-tree, for distances
+            g = torch.Generator(device=self.device).manual_seed(12345)
+            cloud, _ = sampling.sample_interfaces(self.problem.interfaces, 20000, g, device=self.device, dtype=self.dtype)
+            self._iface_cloud = cKDTree(cloud.detach().cpu().double().numpy())
+        dist, _ = self._iface_cloud.query(x.detach().cpu().double().numpy(), distance_upper_bound=c)
+        return torch.from_numpy(dist > c).to(x.device)
+
+    # --- results -----------------------------------------------------------------------------
+
+    def _output_resolution(self, resolution: int | None = None) -> int:
+        return int(resolution or self.cfg.output.resolution or default_resolution("output", self.d))
+
+    def finalize(self, model: nn.Module, run_dir: Path) -> list[Path]:
+        """``shapes/`` (2D: contour polylines and drawings per shape; 3D: one STL per shape),
+        ``figures/`` (shapes, superposition and interpolation in 2D, views in 3D, loss curves) and,
+        for a problem with a minimal-surface reference, ``plateau/``."""
+        run_dir = Path(run_dir)
+        model.eval()
+        res = self._output_resolution()
+        paths = export_shapes(model, self.Z, self.problem.domain, run_dir / "shapes", res, mesh_format="stl")
+        paths += self.plot(model, run_dir, res)
+        if self.problem.reference == "minimal-surface":
+            paths += write_plateau_results(model, self.problem, run_dir, resolution=res)
+        return paths
+
+    def evaluate(self, model: nn.Module, resolution: int | None = None, out_dir: Path | None = None) -> dict:
+        """The Appendix B.1 metrics of every shape (:func:`ginn.eval.shapes.evaluate_shapes`), and the
+        comparison with the reference surface where the problem has one."""
+        res = evaluate_shapes(model, self.Z, self.problem, resolution)
+        if self.problem.reference == "minimal-surface":
+            res.update(evaluate_plateau(model, self.problem))
+        return res
+
+    def format_metrics(self, metrics: dict) -> str:
+        text = format_table(metrics)
+        extra = {k: v for k, v in metrics.items() if k not in ("problem", "n_shapes", "shapes", "mean", "diversity_mean")}
+        if extra:
+            text += "\n" + "\n".join(f"{k}: {v}" for k, v in extra.items())
+        return text
+
+    def export(self, model: nn.Module, latents: Tensor | list[list[float]] | None, out_dir: Path,
+               resolution: int | None = None, mesh_format: str = "stl") -> list[Path]:
+        """Meshes (3D) or contours (2D) for ``latents`` ``(S, k)`` (None: the trained latents)."""
+        Z = self.Z
+        if latents is not None:
+            if Z is None:
+                raise GinnError("--latent: this run trained a single shape (no latent codes)")
+            rows = latents.tolist() if isinstance(latents, Tensor) else latents
+            k = Z.shape[1]
+            if any(len(v) != k for v in rows):
+                raise GinnError(f"--latent: this model takes {k} latent value(s) per shape")
+            Z = torch.tensor(rows, dtype=Z.dtype, device=Z.device)
+        return export_shapes(model, Z, self.problem.domain, Path(out_dir), self._output_resolution(resolution),
+                             mesh_format=mesh_format)
+
+    def plot(self, model: nn.Module, run_dir: Path, resolution: int | None = None) -> list[Path]:
+        """The paper-style figures into ``run_dir/figures`` (:func:`ginn.viz.plot.plot_run`)."""
+        run_dir = Path(run_dir)
+        return plot_run(model, self.Z, self.problem, run_dir / "figures", metrics_jsonl=run_dir / "metrics.jsonl",
+                        resolution=resolution)
