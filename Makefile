@@ -1,4 +1,5 @@
-# The two quick-start commands: `make run` (train a built-in problem on CPU) and `make test`.
+# The two quick-start commands: `make run` (train a built-in problem on CPU) and `make test`
+# (lint, then the default test suite; .ci/run calls it).
 .PHONY: run test test-slow bench venv clean
 
 VENV := .venv
@@ -12,6 +13,7 @@ run: venv
 	$(GINN) train obstacle --preset demo
 
 test: venv
+	$(VENV)/bin/ruff check src tests benchmarks scripts
 	$(PYTEST) -q -m "not slow"
 
 test-slow: venv
