@@ -12,7 +12,7 @@ Checks:
   the field's magnitude and fails.
 * the connectedness loss reduces the number of connected components of the shape inside the
   envelope, ``b0(Omega ∩ E)`` (same seed, same everything else), and does not raise ``b0``.
-* the `cpu` preset as a user runs it meets issue 9's single-shape bounds (about 10 more minutes),
+* the `cpu` preset as a user runs it meets the single-shape acceptance bounds (about 10 more minutes),
   and the `cpu-gen` preset its per-shape bounds on each of its four shapes (about 30 more minutes).
 """
 
@@ -80,9 +80,8 @@ def test_all_six_interfaces_are_fitted(runs, which):
 
 def test_connectedness_reduces_b0(runs):
     """The loss joins the components of the shape inside E (``connectedness.restrict_to_design_region``,
-    the default): b0(Omega ∩ E) drops, and b0 of the whole shape does not rise. Measured on the
-    corrected lugs (twelfth session): b0(Omega ∩ E) 1 with, 12 without; b0 2 and 2 (a speck outside
-    E in the run with the loss)."""
+    the default): b0(Omega ∩ E) drops, and b0 of the whole shape does not rise. Measured: b0(Omega
+    ∩ E) 1 with, 12 without; b0 2 and 2 (a speck outside E in the run with the loss)."""
     m = {}
     for which, (task, model) in runs.items():
         m[which] = evaluate_shapes(model, None, task.problem, resolution=64)["shapes"][0]
@@ -101,10 +100,10 @@ def _train_preset(name: str):
 
 
 def test_cpu_preset_meets_the_acceptance_bounds():
-    """Issue 9, item 1: the `cpu` preset as a user runs it (one shape, default threads) ends with
-    the part inside the envelope in one piece, all six interfaces on it, CD1 <= 5e-3 and
-    vol_out <= 1e-3 on the 256-cell evaluation grid of `ginn eval`. Measured (docs/bracket.md,
-    twelfth session): seed 0 CD1 4.6e-3, vol_out 9.4e-4 (run b42); about 10 minutes on 2 idle cores.
+    """The `cpu` preset as a user runs it (one shape, default threads) ends with the part inside
+    the envelope in one piece, all six interfaces on it, CD1 <= 5e-3 and vol_out <= 1e-3 on the
+    256-cell evaluation grid of `ginn eval` (docs/results.md, bracket: seed 0 CD1 4.6e-3, vol_out
+    9.4e-4); about 10 minutes on 2 idle cores.
     """
     task, model = _train_preset("cpu")
     m = evaluate_shapes(model, None, task.problem, resolution=256)["shapes"][0]
@@ -116,10 +115,9 @@ def test_cpu_preset_meets_the_acceptance_bounds():
 
 
 def test_cpu_gen_preset_meets_the_acceptance_bounds():
-    """Issue 9, item 1, generative: the `cpu-gen` preset as a user runs it (four shapes, default
-    threads) meets the same bounds on every shape, with diversity_mean > 0. Measured
-    (docs/bracket.md, fourteenth session, this test): CD1 4.1e-3 to 4.5e-3, vol_out 4.2e-4 to
-    4.5e-4, diversity_mean 0.015; 36 minutes on 2 idle cores."""
+    """The generative `cpu-gen` preset as a user runs it (four shapes, default threads) meets the
+    same bounds on every shape, with diversity_mean > 0 (docs/results.md, bracket: CD1 4.1e-3 to
+    4.5e-3, vol_out 4.2e-4 to 4.5e-4, diversity_mean 0.015); 36 minutes on 2 idle cores."""
     task, model = _train_preset("cpu-gen")
     Z = task.latents()
     assert Z.shape == (4, 1)

@@ -171,7 +171,7 @@ def test_finalize_and_verify_run_write_files(tmp_path):
 
 @pytest.mark.slow
 def test_quick_preset_acceptance(tmp_path):
-    """The issue's acceptance: the quick preset gives >= 8 latents passing all four checks."""
+    """The acceptance of the quick preset: >= 8 latents pass all four checks."""
     from ginn.eval.gray_scott import verify_run
     from ginn.problems.loader import get_spec
     from ginn.tasks import make_task

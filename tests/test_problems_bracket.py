@@ -37,8 +37,8 @@ def test_domain_matches_the_paper_bounds():
 
 
 def test_csg_envelope_volume_iou(norm):
-    """Volume IoU >= 0.93 between the CSG envelope and 411_for_envelope.obj (measured 0.954; the
-    first sessions' lugs, extruded along y, gave 0.948 overall and 0.85 around the lugs)."""
+    """Volume IoU >= 0.93 between the CSG envelope and 411_for_envelope.obj (measured 0.954; lugs
+    extruded along y instead gave 0.948 overall and 0.85 around the lugs)."""
     p = load_spec("bracket").build()
     real = MeshRegion(load_mesh(DATA / "411_for_envelope.obj", *norm))
     gen = torch.Generator().manual_seed(0)

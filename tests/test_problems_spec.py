@@ -101,7 +101,7 @@ def test_bracket_clevis_lug_faces_are_perpendicular_to_the_pin_axis(k):
     """Each lug is 2 x 0.0423 thick along the pin axis, centred on the pin hole (the real envelope's
     faces, measured from 411_for_envelope.obj), so the pin interface (half length 0.035235) ends
     7.1e-3 inside both lug faces all round the hole: room for the surface to turn the corner.
-    (The first sessions' lugs were extruded along y, off centre: the interface reached past a face.)"""
+    (Lugs extruded along y, off centre, let the interface reach past a face.)"""
     p = load_spec("bracket").build()
     c, a, u, w = _pin_frame(p.interfaces[k])
     th = torch.linspace(0, 2 * torch.pi, 37, dtype=F64)[:-1]

@@ -19,7 +19,7 @@ def train(name, preset, over):
 
 
 def test_single_shape_obstacle_fits_the_interfaces():
-    """Issue 4: the interface loss of the single-shape obstacle falls below 1e-3."""
+    """The interface loss of the single-shape obstacle falls below 1e-3."""
     task, res = train("obstacle", "single", {"training": {"iterations": 400}, "losses": {"connectedness": {"weight": 0.0}}})
     g = torch.Generator().manual_seed(1)
     vals = task.loss_terms(res.model, 400, {"interface"}, g)
@@ -27,7 +27,7 @@ def test_single_shape_obstacle_fits_the_interfaces():
 
 
 def test_plateau_cpu_preset_meets_the_acceptance_bounds():
-    """Issue 8: the GINN surface lies within CD2 0.02 of the discrete minimal surface and its
+    """The GINN surface lies within CD2 0.02 of the discrete minimal surface and its
     area is within 2 % of the reference (the `cpu` preset, about 25 minutes on 2 idle cores)."""
     from ginn.eval.plateau import evaluate_plateau
 
@@ -39,10 +39,10 @@ def test_plateau_cpu_preset_meets_the_acceptance_bounds():
 
 
 def test_obstacle_quick_preset_meets_the_acceptance_bounds():
-    """Issue 7, item 6: the `quick` preset as a user runs it (16 shapes, default threads) ends with
-    every shape one piece (b0 = 1) joining both interfaces, CD1 <= 5e-3, vol_out <= 5e-3 and
-    diversity_mean >= 0.1 on the 256-cell evaluation grid of `ginn eval`. Measured (run o_Z,
-    docs/results.md): CD1 4.1e-3, vol_out 1.5e-3, diversity 0.116; about 12 minutes on 2 idle cores.
+    """The `quick` preset as a user runs it (16 shapes, default threads) ends with every shape one
+    piece (b0 = 1) joining both interfaces, CD1 <= 5e-3, vol_out <= 5e-3 and diversity_mean >= 0.1
+    on the 256-cell evaluation grid of `ginn eval` (docs/results.md, obstacle: CD1 4.1e-3, vol_out
+    1.5e-3, diversity 0.116); about 12 minutes on 2 idle cores.
     """
     from ginn.eval.shapes import evaluate_shapes
 
@@ -56,10 +56,11 @@ def test_obstacle_quick_preset_meets_the_acceptance_bounds():
 
 
 def test_softplus_generative_obstacle_collapses_without_diversity():
-    """Issue 7 (paper Table 3, Figure 4): a softplus MLP trained on 4 latents without the diversity
-    loss ends with nearly identical shapes; the same run with it ends with distinct ones.
+    """Paper Table 3, Figure 4: a softplus MLP trained on 4 latents without the diversity loss ends
+    with nearly identical shapes; the same run with it ends with distinct ones.
 
-    Setting (docs/results.md, fourth session): the third-session `quick` weights (pinned here) with
+    Setting (docs/obstacle.md, `diversity.eps`): the weights pinned here (interface 100, design
+    region and obstacle 1000, normal 10) with
     a residual softplus MLP 4 x 64 (beta 10), eikonal 1, no containment floor, no connectedness,
     1000 iterations, 1 thread, and the smoothed shape distance (``diversity.eps = 0.01``: with the
     paper's distance the loss is singular at the collapsed start and any weight down to 1e-5 empties
@@ -72,7 +73,7 @@ def test_softplus_generative_obstacle_collapses_without_diversity():
     def delta(weight):
         over = {"model": {"kind": "resmlp", "width": 64, "n_blocks": 4, "beta": 10.0, "latent_scale": 1.0},
                 "latents": {"n_shapes": 4},
-                # the third-session `quick` weights these numbers were measured with
+                # the weights these numbers were measured with
                 "losses": {"interface": {"weight": 100.0}, "design_region": {"weight": 1000.0},
                            "obstacle": {"weight": 1000.0}, "normal": {"weight": 10.0},
                            "connectedness": {"weight": 0.0}, "diversity": {"weight": weight},

@@ -47,7 +47,8 @@ class _Strict(BaseModel):
 class ModelConfig(_Strict):
     """The neural field."""
 
-    kind: Literal["siren", "resmlp", "mlp", "fourier"] = "siren"
+    kind: Literal["siren", "resmlp", "mlp", "fourier"] = Field(
+        "siren", description="siren (sine activations), resmlp (softplus residual MLP), mlp, fourier (Fourier features + MLP)")
     hidden: list[int] = Field(default_factory=lambda: [64, 64, 64, 64], description="hidden widths (siren, mlp, fourier)")
     width: int = Field(512, gt=0, description="hidden width (resmlp)")
     n_blocks: int = Field(4, gt=0, description="number of hidden layers (resmlp)")
@@ -73,18 +74,18 @@ class ModelConfig(_Strict):
 class LatentConfig(_Strict):
     """The latent codes of a generative model (``n_shapes == 1``: a single shape, no latent)."""
 
-    n_shapes: int = Field(1, ge=1)
+    n_shapes: int = Field(1, ge=1, description="number of trained shapes (latent codes); 1: a single shape without latent")
     dim: int = Field(1, ge=1, description="latent dimension when n_shapes > 1")
-    low: float = -1.0
-    high: float = 1.0
+    low: float = Field(-1.0, description="lower end of the latent interval")
+    high: float = Field(1.0, description="upper end of the latent interval")
     random: bool = Field(False, description="draw fresh random latents in [low, high]^dim every iteration")
 
 
 class LossTerm(_Strict):
     """Weight and first iteration of one loss term (weight 0 switches it off)."""
 
-    weight: float = Field(0.0, ge=0)
-    start: int = Field(0, ge=0)
+    weight: float = Field(0.0, ge=0, description="weight of the term (0 switches it off; a finite number)")
+    start: int = Field(0, ge=0, description="first iteration at which the term is active")
 
     @field_validator("weight")
     @classmethod
@@ -150,7 +151,8 @@ class SamplingConfig(_Strict):
 class DiversityConfig(_Strict):
     """Diversity loss of Appendix E."""
 
-    aggregation: Literal["min", "sum"] = "min"
+    aggregation: Literal["min", "sum"] = Field(
+        "min", description="min: each shape's distance to its nearest other shape (equation 11); sum: all pairs (equation 10)")
     p: float = Field(0.5, gt=0, description="exponent of the aggregation (paper: 0.5 with min)")
     interface_clearance: float = Field(0.0, ge=0, description="leave boundary points this close to an interface out of "
                                        "the shape distance (every shape must share the interfaces; 0: the paper's full boundary)")
@@ -161,10 +163,11 @@ class DiversityConfig(_Strict):
 class ConnectednessConfig(_Strict):
     """Connectedness loss (Appendix C); see docs/connectedness.md."""
 
-    method: Literal["surface-network", "persistent-homology"] = "surface-network"
+    method: Literal["surface-network", "persistent-homology"] = Field(
+        "surface-network", description="the paper's surface-network loss, or 0-dimensional cubical persistent homology (cripser)")
     every: int = Field(10, ge=1, description="full surface-network rebuild at least every K steps (warm updates between)")
     grid: int = Field(16, ge=2, description="seed grid resolution per axis (surface network) or PH grid resolution")
-    restrict_to_design_region: bool = True
+    restrict_to_design_region: bool = Field(True, description="count only the part of the shape inside the design region E")
     eps: float = Field(1e-2, gt=0, description="epsilon in p_k += 1/(d + eps)")
     margin: float = Field(0.0, ge=0, description="the loss sees the shape {f <= -margin}: connections thinner than "
                           "about 2 margin count as gaps and are pushed open (0: the paper's {f <= 0})")
@@ -173,12 +176,13 @@ class ConnectednessConfig(_Strict):
 class BalancingConfig(_Strict):
     """How loss terms are combined: fixed weights, or an augmented Lagrangian."""
 
-    method: Literal["weighted", "augmented-lagrangian"] = "weighted"
+    method: Literal["weighted", "augmented-lagrangian"] = Field(
+        "weighted", description="weighted: the sum of weight * term (the paper); augmented-lagrangian: constraints with multipliers")
     objectives: list[str] = Field(default_factory=lambda: ["eikonal", "mean_curvature", "strain", "diversity", "connectedness"],
                                   description="terms minimised as objectives; the rest are constraints (augmented Lagrangian)")
     mu: float = Field(1.0, gt=0, description="initial penalty parameter")
     mu_growth: float = Field(1.0, ge=1.0, description="penalty growth factor per multiplier update")
-    mu_max: float = Field(1e4, gt=0)
+    mu_max: float = Field(1e4, gt=0, description="upper bound of the penalty parameter")
     update_every: int = Field(100, ge=1, description="iterations between multiplier updates")
     lambda_lr: float = Field(1.0, gt=0, description="step size of the multiplier update")
 
@@ -186,21 +190,21 @@ class BalancingConfig(_Strict):
 class TrainingConfig(_Strict):
     """Optimiser, schedule and bookkeeping."""
 
-    iterations: int = Field(3000, ge=0)
-    lr: float = Field(1e-3, gt=0)
+    iterations: int = Field(3000, ge=0, description="optimisation steps of the run")
+    lr: float = Field(1e-3, gt=0, description="Adam learning rate at iteration 0")
     lr_decay: float = Field(0.5, gt=0, le=1, description="learning rate is lr * lr_decay^(t / lr_decay_every)")
-    lr_decay_every: int = Field(1000, gt=0)
+    lr_decay_every: int = Field(1000, gt=0, description="iterations over which the learning rate is multiplied by lr_decay")
     lr_restart_at: int = Field(
         0, ge=0, description="from this iteration on (0: never) the learning rate restarts at lr_restart and decays "
         "from there: lr_restart * lr_decay^((t - lr_restart_at) / lr_decay_every)")
     lr_restart: float = Field(1e-4, gt=0, description="learning rate at iteration lr_restart_at")
     grad_clip: float = Field(1.0, ge=0, description="clip the gradient norm (0: off)")
-    log_every: int = Field(10, ge=1)
-    checkpoint_every: int = Field(200, ge=1)
+    log_every: int = Field(10, ge=1, description="iterations between lines of metrics.jsonl")
+    checkpoint_every: int = Field(200, ge=1, description="iterations between checkpoints (also written on SIGINT/SIGTERM and at the end)")
     max_bad_steps: int = Field(5, ge=1, description="consecutive non-finite steps before rolling back")
-    rollback_lr_factor: float = Field(0.5, gt=0, lt=1)
+    rollback_lr_factor: float = Field(0.5, gt=0, lt=1, description="multiply the learning rate by this at each rollback")
     max_rollbacks: int = Field(3, ge=0, description="give up (error) after this many rollbacks")
-    dtype: Literal["float32", "float64"] = "float32"
+    dtype: Literal["float32", "float64"] = Field("float32", description="floating-point type of the model and the samples")
     threads: int = Field(0, ge=0, description="torch CPU threads (0: leave the default)")
 
 
@@ -212,13 +216,13 @@ class TrainingConfig(_Strict):
 class ShapeParams(_Strict):
     """``params`` of a shape problem: none beyond the groups above."""
 
-    kind: Literal["shape"] = "shape"
+    kind: Literal["shape"] = Field("shape", description="the task kind this group belongs to")
 
 
 class MirrorParams(_Strict):
     """``params`` of the parabolic mirror (``kind: mirror``)."""
 
-    kind: Literal["mirror"] = "mirror"
+    kind: Literal["mirror"] = Field("mirror", description="the task kind this group belongs to")
     focus: float = Field(1.0, gt=0, description="height F of the focus (0, F); the exact mirror is x^2 / (4 F)")
     x_min: float = Field(-1.0, description="left end of the aperture")
     x_max: float = Field(1.0, description="right end of the aperture")
@@ -258,7 +262,7 @@ class GrayScottLosses(_Strict):
 class GrayScottParams(_Strict):
     """``params`` of the Gray-Scott generative PINN (``kind: gray-scott``); see docs/gray-scott.md."""
 
-    kind: Literal["gray-scott"] = "gray-scott"
+    kind: Literal["gray-scott"] = Field("gray-scott", description="the task kind this group belongs to")
     D_v: float = Field(1.2e-5, gt=0, description="diffusion coefficient of v")
     D_u: float | None = Field(None, gt=0, description="diffusion coefficient of u (None: 2 D_v)")
     alpha: float = Field(0.028, gt=0, description="feed rate")
@@ -300,10 +304,11 @@ class GrayScottParams(_Strict):
                         alpha=self.alpha, beta=self.beta)
 
 
-_PARAM_TYPES: dict[str, type[_Strict]] = {m.model_fields["kind"].default: m for m in (ShapeParams, MirrorParams, GrayScottParams)}
+#: task kind -> its ``params`` group
+TASK_PARAMS: dict[str, type[_Strict]] = {m.model_fields["kind"].default: m for m in (ShapeParams, MirrorParams, GrayScottParams)}
 
 #: Every task kind (``ginn.tasks.registry`` maps each to its Task class).
-TASK_KINDS: tuple[str, ...] = tuple(_PARAM_TYPES)
+TASK_KINDS: tuple[str, ...] = tuple(TASK_PARAMS)
 
 
 def _kind_of(v: Any) -> str:
@@ -312,7 +317,7 @@ def _kind_of(v: Any) -> str:
 
 #: The ``params`` group: one model per task kind, chosen by ``kind`` (default ``shape``).
 TaskParams = Annotated[
-    Union[tuple(Annotated[m, Tag(k)] for k, m in _PARAM_TYPES.items())],  # type: ignore[misc]
+    Union[tuple(Annotated[m, Tag(k)] for k, m in TASK_PARAMS.items())],  # type: ignore[misc]
     Discriminator(_kind_of),
 ]
 
@@ -437,7 +442,7 @@ def parse_task_params(kind: str, params: dict | None) -> ShapeParams | MirrorPar
         ConfigError: one line, ``config field 'params.<key>': <what is wrong>``.
     """
     data = {**(params or {}), "kind": kind}
-    model = _PARAM_TYPES.get(kind)
+    model = TASK_PARAMS.get(kind)
     if model is None:
         raise ConfigError(f"config field 'params.kind': unknown task kind {kind!r} (one of {', '.join(TASK_KINDS)})")
     try:
