@@ -19,7 +19,7 @@ Names (the keys of ``metrics.json``) and estimators:
   samples to the extracted boundary of ``Omega cap X`` (contour / mesh, exact point-to-element
   distance).
 * ``b0``, ``b0_in_design_region``: face-connected components of the grid nodes of Omega and of
-  Omega cap E (scipy.ndimage.label; see :mod:`ginn.surface` for the connectivity convention).
+  Omega cap E (scipy.ndimage.label; see :mod:`ginn.extract.grid` for the connectivity convention).
 * ``disconnected_volume``, ``disconnected_volume_in_design_region``: volume of all components but
   the largest, over vol(E).
 * ``connected_interfaces_share`` = CI / n_I: interface component ``c`` touches shape component

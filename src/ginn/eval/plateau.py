@@ -4,7 +4,7 @@ The GINN's surface is the zero level set of its field. It is extracted by marchi
 (:mod:`ginn.extract`) on a grid over the bounding box of ``Gamma``, *clipped exactly* to the convex
 hull of ``Gamma`` (a minimal surface lies in the convex hull of its boundary; outside it the zero set
 of the field is an arbitrary continuation), and compared with the reference mesh of
-:mod:`ginn.reference.minimal_surface`:
+:mod:`ginn.eval.reference.minimal_surface`:
 
 * ``cd2_to_reference``: two-sided chamfer discrepancy CD2 (paper eq. 4-5) between the surfaces, from
   area-uniform samples of each to the exact (point-to-triangle) distance to the other mesh;
@@ -41,7 +41,7 @@ from .reference.minimal_surface import (
     triangle_areas,
 )
 
-# Area of the minimal surface spanning the paper's polygon (see ginn.reference.minimal_surface)
+# Area of the minimal surface spanning the paper's polygon (see ginn.eval.reference.minimal_surface)
 PLATEAU_REFERENCE_AREA = PLATEAU_AREA_ESTIMATE
 
 

@@ -79,7 +79,7 @@ def evaluate_shapes(
         Z: latent codes ``(S, k)``, or None for a single (unconditioned) shape.
         problem: the problem the shapes were trained for.
         resolution: grid cells along the longest domain axis (default: ``ginn.config.RESOLUTION['eval']``).
-        adaptive: adaptive grid sampling (see :func:`ginn.surface.sample_field`).
+        adaptive: adaptive grid sampling (see :func:`ginn.extract.sampling.sample_field`).
         n_interface_samples, n_strain_samples, n_diversity_samples: Monte-Carlo sample counts.
         seed: seed of every sample (results are deterministic).
         timings: optional dict that receives the seconds spent per stage / metric.

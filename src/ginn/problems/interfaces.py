@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Any, ClassVar, Literal, Union
 
@@ -15,16 +16,12 @@ from .nodes import Dir3, Direction, MeshPath, NonNegative, Point, Positive, Shap
 
 
 class InterfaceNode(ShapeNode):
-    def make(self, dim: int, base_dir: Path, path: str = "interface") -> Interface:
-        """The interface object; errors are SpecErrors naming ``path``."""
-        i = self._make(dim, base_dir, path)
-        if self.transform is not None:
-            R, t = self.transform.matrices(dim)
-            i = built(f"{path}.transform", lambda: itf.TransformedInterface(i, R, t))
-        return i
+    """A node that makes an :class:`~ginn.geometry.base.Interface`."""
 
-    def _make(self, dim: int, base_dir: Path, path: str) -> Interface:  # pragma: no cover - abstract
-        raise NotImplementedError
+    wrap: ClassVar[Callable] = staticmethod(itf.TransformedInterface)
+
+    def make(self, dim: int, base_dir: Path, path: str) -> Interface:
+        return super().make(dim, base_dir, path)
 
 
 class SegmentNode(InterfaceNode):

@@ -8,6 +8,7 @@ errors that name its field path (:func:`built`).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, ClassVar
 
@@ -101,6 +102,21 @@ class ShapeNode(Node):
 
     def _check(self, info: ValidationInfo) -> None:
         pass
+
+    def make(self, dim: int, base_dir: Path, path: str):
+        """The geometry object, with this node's ``transform`` applied; errors are SpecErrors naming
+        ``path`` (this node's field path)."""
+        obj = self._make(dim, base_dir, path)
+        if self.transform is not None:
+            R, t = self.transform.matrices(dim)
+            obj = built(f"{path}.transform", lambda: self.wrap(obj, R, t))
+        return obj
+
+    def _make(self, dim: int, base_dir: Path, path: str):  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    #: ``(object, R, t) -> the object moved by the rigid motion`` (a region or an interface wrapper)
+    wrap: ClassVar[Callable]
 
 
 def built(path: str, fn):

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, ClassVar, Literal, Union
 
@@ -16,16 +17,12 @@ from .nodes import Dir3, Direction, Finite, MeshPath, Point, Point2, Positive, S
 
 
 class RegionNode(ShapeNode):
-    def make(self, dim: int, base_dir: Path, path: str = "region") -> Region:
-        """The geometry object; errors are SpecErrors naming ``path`` (this node's field path)."""
-        r = self._make(dim, base_dir, path)
-        if self.transform is not None:
-            R, t = self.transform.matrices(dim)
-            r = built(f"{path}.transform", lambda: csg.Transformed(r, R, t))
-        return r
+    """A node that makes a :class:`~ginn.geometry.base.Region`."""
 
-    def _make(self, dim: int, base_dir: Path, path: str) -> Region:  # pragma: no cover - abstract
-        raise NotImplementedError
+    wrap: ClassVar[Callable] = staticmethod(csg.Transformed)
+
+    def make(self, dim: int, base_dir: Path, path: str) -> Region:
+        return super().make(dim, base_dir, path)
 
 
 class BoxNode(RegionNode):

@@ -19,6 +19,7 @@ from ..config import RunConfig, build_config, config_to_dict, nested
 from ..errors import ConfigError, GinnError
 from ..problems import ProblemSpec
 from ..runs import evaluate, train
+from ..train.rundir import slug
 from ..train.trainer import StopRun
 from .objective import objective_value
 from .space import SearchSpace, check_space_keys, suggest
@@ -122,7 +123,7 @@ class SweepSetup:
         name to ``sweep-<problem>``."""
         base = config_to_dict(cfg)
         check_space_keys(space, base)
-        safe = "".join(c if c.isalnum() or c in "-_" else "-" for c in spec.name)
+        safe = slug(spec.name)
         out_dir = Path(out) if out else Path("runs") / f"sweep-{safe}"
         out_dir.mkdir(parents=True, exist_ok=True)
         url = storage or default_storage(out_dir)

@@ -30,6 +30,11 @@ from ..errors import ConfigError, GinnError
 from ..version import __version__
 
 
+def slug(name: str) -> str:
+    """``name`` made safe for a directory name (letters, digits, ``-`` and ``_``; others become ``-``)."""
+    return "".join(c if c.isalnum() or c in "-_" else "-" for c in name)
+
+
 def new_run_dir(problem_name: str, out: str | Path | None = None, root: str | Path = "runs") -> Path:
     """A fresh directory ``root/<problem>-<timestamp>`` (or ``out``, which must be empty or new)."""
     if out is not None:
@@ -38,7 +43,7 @@ def new_run_dir(problem_name: str, out: str | Path | None = None, root: str | Pa
             raise ConfigError(f"--out {p}: directory exists and is not empty (use `ginn resume {p}` to continue it)")
     else:
         stamp = _dt.datetime.now().strftime("%Y%m%d-%H%M%S")
-        safe = "".join(c if c.isalnum() or c in "-_" else "-" for c in problem_name)
+        safe = slug(problem_name)
         p = Path(root) / f"{safe}-{stamp}"
         i = 1
         while p.exists():
