@@ -41,7 +41,8 @@ def default_resolution(purpose: Literal["eval", "output", "figure"], dim: int) -
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    # every float is finite: nan and inf are refused where they are read, not found later as a divergence
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 class ModelConfig(_Strict):
@@ -49,18 +50,21 @@ class ModelConfig(_Strict):
 
     kind: Literal["siren", "resmlp", "mlp", "fourier"] = Field(
         "siren", description="siren (sine activations), resmlp (softplus residual MLP), mlp, fourier (Fourier features + MLP)")
-    hidden: list[int] = Field(default_factory=lambda: [64, 64, 64, 64], description="hidden widths (siren, mlp, fourier)")
-    width: int = Field(512, gt=0, description="hidden width (resmlp)")
-    n_blocks: int = Field(4, gt=0, description="number of hidden layers (resmlp)")
-    w0_first: float = Field(1.0, gt=0, description="SIREN omega_0 of the first layer (omega_0^1)")
-    w0_hidden: float = Field(1.0, gt=0, description="SIREN omega_0 of the hidden layers")
+    hidden: list[int] = Field(default_factory=lambda: [64, 64, 64, 64], description="hidden widths (siren, mlp, fourier)",
+                              json_schema_extra={"kinds": ("siren", "mlp", "fourier")})
+    width: int = Field(512, gt=0, description="hidden width (resmlp)", json_schema_extra={"kinds": ("resmlp",)})
+    n_blocks: int = Field(4, gt=0, description="number of hidden layers (resmlp)", json_schema_extra={"kinds": ("resmlp",)})
+    w0_first: float = Field(1.0, gt=0, description="SIREN omega_0 of the first layer (omega_0^1)",
+                            json_schema_extra={"kinds": ("siren",)})
+    w0_hidden: float = Field(1.0, gt=0, description="SIREN omega_0 of the hidden layers", json_schema_extra={"kinds": ("siren",)})
     latent_scale: float = Field(
         1.0, gt=0, description="multiply the latent codes by this before they enter the network (for a SIREN: "
         "the first layer's frequency along the latent axes is omega_0^1 * latent_scale); 1 is the paper's")
-    activation: str = Field("tanh", description="activation (mlp, fourier)")
-    beta: float = Field(1.0, gt=0, description="softplus sharpness (resmlp, softplus activations)")
-    sigma: float = Field(1.0, gt=0, description="Fourier-feature scale (fourier)")
-    n_features: int = Field(128, gt=0, description="number of Fourier features (fourier)")
+    activation: str = Field("tanh", description="activation (mlp, fourier)", json_schema_extra={"kinds": ("mlp", "fourier")})
+    beta: float = Field(1.0, gt=0, description="softplus sharpness (resmlp, softplus activations)",
+                        json_schema_extra={"kinds": ("resmlp", "mlp", "fourier")})
+    sigma: float = Field(1.0, gt=0, description="Fourier-feature scale (fourier)", json_schema_extra={"kinds": ("fourier",)})
+    n_features: int = Field(128, gt=0, description="number of Fourier features (fourier)", json_schema_extra={"kinds": ("fourier",)})
     periodic: bool = Field(False, description="encode x -> (sin 2 pi x, cos 2 pi x) first")
 
     @field_validator("hidden")
@@ -201,6 +205,9 @@ class TrainingConfig(_Strict):
     grad_clip: float = Field(1.0, ge=0, description="clip the gradient norm (0: off)")
     log_every: int = Field(10, ge=1, description="iterations between lines of metrics.jsonl")
     checkpoint_every: int = Field(200, ge=1, description="iterations between checkpoints (also written on SIGINT/SIGTERM and at the end)")
+    checkpoint_seconds: float = Field(
+        60.0, gt=0, description="seconds of training between checkpoints, whichever of this and checkpoint_every comes "
+        "first: a crash loses at most this much work")
     max_bad_steps: int = Field(5, ge=1, description="consecutive non-finite steps before rolling back")
     rollback_lr_factor: float = Field(0.5, gt=0, lt=1, description="multiply the learning rate by this at each rollback")
     max_rollbacks: int = Field(3, ge=0, description="give up (error) after this many rollbacks")
@@ -328,6 +335,7 @@ class OutputConfig(_Strict):
     resolution: int | None = Field(
         None, ge=2, description="grid cells along the longest axis of the written shapes and figures "
         "(None: 256 in 2D, 128 in 3D)")
+    results: bool = Field(True, description="write the shapes and figures at the end of training (--no-results: false)")
 
 
 class RunConfig(_Strict):
@@ -451,6 +459,14 @@ def parse_task_params(kind: str, params: dict | None) -> ShapeParams | MirrorPar
         raise ConfigError(one_line(e, data, prefix="params.")) from None
 
 
-def config_to_dict(cfg: RunConfig) -> dict:
-    """The config as plain data (what ``config.yaml`` holds)."""
-    return cfg.model_dump(mode="json")
+def config_to_dict(cfg: RunConfig, relevant_only: bool = False) -> dict:
+    """The config as plain data. With ``relevant_only`` (what ``config.yaml`` holds) the ``model``
+    fields that the chosen ``model.kind`` does not use are left out."""
+    out = cfg.model_dump(mode="json")
+    if relevant_only:
+        kind = cfg.model.kind
+        for name, f in ModelConfig.model_fields.items():
+            kinds = (f.json_schema_extra or {}).get("kinds")
+            if kinds is not None and kind not in kinds:
+                out["model"].pop(name, None)
+    return out

@@ -22,12 +22,20 @@ from pathlib import Path
 from torch import Tensor, nn
 
 from .config import RunConfig, build_config, deep_merge, parse_set, with_overrides
-from .errors import GinnError
+from .errors import ConfigError, GinnError
 from .problems import ProblemSpec, load_spec
 from .tasks import make_task
 from .train.checkpoint import load_checkpoint
 from .train.distributed import DistContext, on_main
-from .train.rundir import new_run_dir, read_config_dict, write_run_files, write_status
+from .train.rundir import (
+    io_error,
+    new_run_dir,
+    read_config_dict,
+    read_status,
+    truncate_metrics,
+    write_run_files,
+    write_status,
+)
 from .train.task import Task
 from .train.trainer import Trainer
 
@@ -90,19 +98,18 @@ def _spec_file(spec: ProblemSpec) -> Path | None:
 
 
 def _finish(trainer: Trainer, task: Task, run_dir: Path, results: bool, say: Say) -> Outcome:
-    """Train to the end, keep ``status.json`` true, and write the result files."""
-    if not trainer.is_main:  # distributed: ranks > 0 train and write nothing
-        res = trainer.train()
-        return Outcome(res.status, res.step, res.seconds, run_dir, task, trainer.model, reason=res.reason)
-    write_status(run_dir, "running", trainer.step, trainer.elapsed)
+    """Train to the end (the trainer keeps ``status.json`` true) and write the result files."""
     res = trainer.train()
-    write_status(run_dir, res.status, res.step, res.seconds)
     out = Outcome(res.status, res.step, res.seconds, run_dir, task, trainer.model, reason=res.reason)
-    if res.status != "completed":  # interrupted (a checkpoint was written) or stopped by a hook
+    if not trainer.is_main or res.status != "completed":  # ranks > 0 write nothing; interrupted or stopped
         return out
     say(f"trained {res.step} iterations in {res.seconds:.1f} s")
     if results:
-        out.results = task.finalize(trainer.model, run_dir)
+        try:
+            out.results = task.finalize(trainer.model, run_dir)
+        except OSError as e:
+            write_status(run_dir, "failed", res.step, res.seconds, f"writing the results: {e.strerror}")
+            raise io_error(e, e.filename or run_dir) from None
         write_status(run_dir, "completed", res.step, res.seconds)
         if out.results:
             say("results:")
@@ -118,7 +125,7 @@ def train(
     out: str | Path | None = None,
     *,
     progress: bool = True,
-    results: bool = True,
+    results: bool | None = None,
     hooks: list[Callable] | None = None,
     dist: DistContext | None = None,
     say: Say = _silent,
@@ -130,13 +137,16 @@ def train(
         spec, cfg: the problem and its resolved configuration (:func:`resolve`).
         out: the run directory (must be new or empty; default ``runs/<problem>-<timestamp>``).
         progress: show a progress bar.
-        results: write the task's result files (shapes, figures) at the end.
+        results: write the task's result files (shapes, figures) at the end (None:
+            ``cfg.output.results``; False is recorded in the config, so a resume honours it).
         hooks: ``hook(trainer, step, losses)`` after every step; a hook may raise
             :class:`ginn.train.trainer.StopRun` to end the run with its status.
         dist: the torchrun context (None: one process); only rank 0 writes.
         say: where progress messages go (the CLI prints them).
         prepare: called with the run directory after its files are written, before training.
     """
+    if results is not None and results != cfg.output.results:
+        cfg = with_overrides(cfg, {"output": {"results": results}})
     task = make_task(spec, dist.localize(cfg) if dist is not None else cfg)
     run_dir = on_main(dist, lambda: new_run_dir(spec.name, out))
     main = dist is None or dist.is_main
@@ -148,10 +158,10 @@ def train(
     (say if main else _silent)(
         f"training {spec.name}" + (f" (preset {cfg.preset})" if cfg.preset else "") + f" on {where}; run directory {run_dir}")
     trainer = Trainer(task, task.cfg, run_dir, progress=progress, hooks=hooks, dist=dist)
-    return _finish(trainer, task, run_dir, results, say if main else _silent)
+    return _finish(trainer, task, run_dir, cfg.output.results, say if main else _silent)
 
 
-def _run_config(run_dir: Path, spec: ProblemSpec | None = None, *overrides: dict) -> tuple[ProblemSpec, RunConfig]:
+def _run_config(run_dir: Path, spec: ProblemSpec | None = None) -> tuple[ProblemSpec, RunConfig]:
     """The spec and config of a run directory (a config without ``params.kind`` takes the spec's)."""
     raw = read_config_dict(run_dir)
     if spec is None:
@@ -159,7 +169,10 @@ def _run_config(run_dir: Path, spec: ProblemSpec | None = None, *overrides: dict
     params = raw.get("params")
     if not isinstance(params, dict) or "kind" not in params:
         raw = deep_merge(raw, {"params": {"kind": spec.kind}})
-    return spec, build_config(raw, *overrides)
+    try:
+        return spec, build_config(raw)
+    except ConfigError as e:
+        raise ConfigError(f"{Path(run_dir) / 'config.yaml'}: {e}") from None
 
 
 def _recorded_spec(run_dir: Path, original: str) -> ProblemSpec:
@@ -179,20 +192,41 @@ def resume(
     iterations: int | None = None,
     *,
     progress: bool = True,
-    results: bool = True,
+    results: bool | None = None,
     dist: DistContext | None = None,
     say: Say = _silent,
 ) -> Outcome:
-    """Continue a run from its last checkpoint (up to ``iterations`` in total if given)."""
+    """Continue a run from its last checkpoint (up to ``iterations`` in total if given).
+
+    A run that died before its first checkpoint restarts from its saved config (and says so).
+    ``results`` None: as the run was started (``output.results`` of its config).
+
+    Raises:
+        GinnError: the run is still running, or ``iterations`` is not beyond its current step.
+    """
     run_dir = Path(run_dir)
-    spec, cfg = _run_config(run_dir, None, {"training": {"iterations": iterations}} if iterations is not None else {})
+    state = read_status(run_dir)
+    if state.alive():
+        raise GinnError(f"{run_dir}: the run is still {state.describe()}; stop it before resuming")
+    if state.status == "running":
+        say(f"{run_dir} was {state.describe().split(';')[0]}")
+    spec, cfg = _run_config(run_dir)
+    if iterations is not None:
+        cfg = with_overrides(cfg, {"training": {"iterations": iterations}})
     cfg = dist.localize(cfg) if dist is not None else cfg
     task = make_task(spec, cfg)
     trainer = Trainer(task, cfg, run_dir, progress=progress, dist=dist)
-    if not trainer.resume():
-        raise GinnError(f"{run_dir}: no checkpoint to resume from")
-    (say if trainer.is_main else _silent)(f"resuming {run_dir} at iteration {trainer.step} of {cfg.training.iterations}")
-    return _finish(trainer, task, run_dir, results, say if trainer.is_main else _silent)
+    main_say = say if trainer.is_main else _silent
+    if trainer.resume():
+        if iterations is not None and iterations <= trainer.step:
+            raise GinnError(f"--iterations {iterations}: the run is already at iteration {trainer.step}; "
+                            "give a larger total")
+        main_say(f"resuming {run_dir} at iteration {trainer.step} of {cfg.training.iterations}")
+    else:
+        if trainer.is_main:
+            truncate_metrics(run_dir / "metrics.jsonl", 0)
+        main_say(f"{run_dir} has no checkpoint yet: restarting it from its config.yaml")
+    return _finish(trainer, task, run_dir, cfg.output.results if results is None else results, main_say)
 
 
 @dataclass
@@ -275,7 +309,7 @@ def evaluate_with_text(run_dir: str | Path, resolution: int | None = None, devic
 
 
 def export(run_dir: str | Path, latents: list[list[float]] | None = None, resolution: int | None = None,
-           mesh_format: str = "stl", out: str | Path | None = None) -> list[Path]:
+           mesh_format: str | None = None, out: str | Path | None = None) -> list[Path]:
     """Meshes (3D) or contours (2D) of the trained latents, or of the given latent values, into
     ``out`` (default ``RUN/export``)."""
     run = load_run(run_dir)

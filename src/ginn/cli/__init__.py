@@ -1,4 +1,4 @@
-"""The ``ginn`` command line: train, resume, problems, eval, export, plot, sweep.
+"""The ``ginn`` command line: train, resume, status, problems, eval, export, plot, sweep.
 
 Every user error (bad flag, unknown ``--set`` key, bad value, malformed spec) prints one line
 ``ginn: error: ...`` to stderr and exits with status 2.
@@ -9,6 +9,7 @@ from __future__ import annotations
 import sys
 
 from ..errors import GinnError
+from ..train.rundir import io_error
 from . import commands
 from .parser import build_parser
 
@@ -32,6 +33,8 @@ def main(argv: list[str] | None = None) -> int:
         return _fail(str(e))
     except FileNotFoundError as e:
         return _fail(f"{e.filename or e}: no such file")
+    except OSError as e:  # a read-only directory, a full disk, ...: one line naming the file
+        return _fail(str(io_error(e, e.filename or "a file", "write")))
     except KeyboardInterrupt:
         return _fail("interrupted")
 

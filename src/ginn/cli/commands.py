@@ -16,7 +16,7 @@ from ..errors import ConfigError, GinnError
 from ..eval.shapes import format_comparison_table
 from ..problems import list_problems, load_spec, spec_text
 from ..train.distributed import init_distributed, shutdown
-from ..train.rundir import read_config_dict
+from ..train.rundir import read_config_dict, read_status
 
 __all__ = ["COMMANDS"]
 
@@ -53,15 +53,13 @@ def cmd_train(args: argparse.Namespace) -> int:
     if args.device is not None:
         over["device"] = args.device
     if args.iterations is not None:
-        if args.iterations < 0:
-            raise ConfigError("--iterations must be >= 0")
         over["training"] = {"iterations": args.iterations}
     spec, cfg = runs.resolve(args.problem, args.preset, over, sets=args.sets)
     dist = init_distributed(cfg.device)  # None unless started by torchrun
     try:
         main = dist is None or dist.is_main
-        outcome = runs.train(spec, cfg, args.out, progress=not args.quiet, results=not args.no_results, dist=dist,
-                             say=_printer(args.quiet or not main))
+        outcome = runs.train(spec, cfg, args.out, progress=not args.quiet, results=False if args.no_results else None,
+                             dist=dist, say=_printer(args.quiet or not main))
         return _exit_status(outcome, main)
     finally:
         shutdown(dist)
@@ -72,11 +70,25 @@ def cmd_resume(args: argparse.Namespace) -> int:
     dist = init_distributed(str(raw.get("device", "cpu")))  # None unless started by torchrun
     try:
         main = dist is None or dist.is_main
-        outcome = runs.resume(args.run_dir, args.iterations, progress=not args.quiet, results=not args.no_results,
-                              dist=dist, say=_printer(args.quiet or not main))
+        outcome = runs.resume(args.run_dir, args.iterations, progress=not args.quiet,
+                              results=False if args.no_results else None, dist=dist, say=_printer(args.quiet or not main))
         return _exit_status(outcome, main)
     finally:
         shutdown(dist)
+
+
+def cmd_status(args: argparse.Namespace) -> int:
+    for rd in args.run_dirs:
+        read_config_dict(Path(rd))  # one line if it is not a run directory
+        print(f"{rd}: {read_status(Path(rd)).describe()}")
+    return 0
+
+
+def _note_unfinished(run_dir: str | Path) -> None:
+    """One line on stderr when a run being read has not completed (running, stopped, failed)."""
+    st = read_status(Path(run_dir))
+    if st.status not in ("completed", "unknown"):
+        sys.stderr.write(f"ginn: note: {run_dir} is {st.describe()}\n")
 
 
 def cmd_problems(args: argparse.Namespace) -> int:
@@ -98,6 +110,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
     _check_device(args.device)
     results = []
     for rd in args.run_dirs:
+        _note_unfinished(rd)
         metrics, text = runs.evaluate_with_text(Path(rd), resolution=args.resolution, device=args.device)
         results.append(metrics)
         if not args.table:
@@ -110,12 +123,14 @@ def cmd_eval(args: argparse.Namespace) -> int:
 
 
 def cmd_export(args: argparse.Namespace) -> int:
+    _note_unfinished(args.run_dir)
     for p in runs.export(Path(args.run_dir), args.latent, args.resolution, args.format, args.out):
         print(p)
     return 0
 
 
 def cmd_plot(args: argparse.Namespace) -> int:
+    _note_unfinished(args.run_dir)
     for p in runs.plot(Path(args.run_dir), args.resolution):
         print(p)
     return 0
@@ -129,8 +144,6 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         raise ConfigError("usage: ginn sweep PROBLEM|SPEC.yaml --space SPACE.yaml --trials N (or ginn sweep --report)")
     if not args.space:
         raise ConfigError("ginn sweep: --space SPACE.yaml is required")
-    if args.trials is None or args.trials < 1:
-        raise ConfigError("--trials must be >= 1")
     space = sweep.load_space(args.space)
     over: dict = {}
     if args.device is not None:
@@ -181,6 +194,7 @@ def _sweep_report(args: argparse.Namespace) -> int:
 COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {
     "train": cmd_train,
     "resume": cmd_resume,
+    "status": cmd_status,
     "problems": cmd_problems,
     "eval": cmd_eval,
     "export": cmd_export,

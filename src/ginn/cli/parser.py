@@ -7,6 +7,7 @@ import argparse
 import sys
 
 from .sweep_parser import add_sweep_parser
+from .types import count, device, finite
 
 
 class Parser(argparse.ArgumentParser):
@@ -25,19 +26,23 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("problem", help="built-in problem name (see `ginn problems`) or path to a SPEC.yaml")
     t.add_argument("--preset", help="named preset of the problem (e.g. quick, demo, paper)")
     t.add_argument("--out", help="run directory (default runs/<problem>-<timestamp>)")
-    t.add_argument("--device", help="cpu (default) or cuda[:N]")
+    t.add_argument("--device", type=device, help="cpu (default) or cuda[:N]")
     t.add_argument("--seed", type=int, help="random seed")
-    t.add_argument("--iterations", type=int, help="number of training iterations")
+    t.add_argument("--iterations", type=count(1), help="number of training iterations")
     t.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=VALUE",
                    help="override any config field, e.g. --set losses.eikonal.weight=1e-5 (repeatable)")
-    t.add_argument("--quiet", action="store_true", help="no progress bar")
-    t.add_argument("--no-results", action="store_true", help="skip writing shapes and figures at the end")
+    t.add_argument("--quiet", action="store_true", help="no progress bar and no messages")
+    t.add_argument("--no-results", action="store_true",
+                   help="skip writing shapes and figures at the end (recorded: a resume does the same)")
 
     r = sub.add_parser("resume", help="continue an interrupted run from its last checkpoint")
     r.add_argument("run_dir")
-    r.add_argument("--iterations", type=int, help="train up to this many iterations in total")
-    r.add_argument("--quiet", action="store_true")
-    r.add_argument("--no-results", action="store_true")
+    r.add_argument("--iterations", type=count(1), help="train up to this many iterations in total")
+    r.add_argument("--quiet", action="store_true", help="no progress bar and no messages")
+    r.add_argument("--no-results", action="store_true", help="skip writing shapes and figures at the end")
+
+    st = sub.add_parser("status", help="say whether runs are running, completed, interrupted or failed")
+    st.add_argument("run_dirs", nargs="+")
 
     pr = sub.add_parser("problems", help="list built-in problems, or print one with `show NAME`")
     pr.add_argument("action", nargs="?", choices=["list", "show"], default="list")
@@ -45,20 +50,20 @@ def build_parser() -> argparse.ArgumentParser:
 
     e = sub.add_parser("eval", help="compute the paper's metrics of runs (writes RUN/metrics.json)")
     e.add_argument("run_dirs", nargs="+")
-    e.add_argument("--resolution", type=int, help="grid resolution per axis")
+    e.add_argument("--resolution", type=count(2), help="grid cells along the longest axis (default 512 in 2D, 128 in 3D)")
     e.add_argument("--table", action="store_true", help="print a markdown table with one column per run")
-    e.add_argument("--device")
+    e.add_argument("--device", type=device, help="cpu or cuda[:N] (default: the run's)")
 
     x = sub.add_parser("export", help="write meshes (3D) or contours (2D) for any latent value")
     x.add_argument("run_dir")
-    x.add_argument("--latent", type=float, nargs="+", action="append", help="latent value(s); repeat for several shapes")
-    x.add_argument("--resolution", type=int, default=None)
-    x.add_argument("--format", choices=["stl", "ply", "obj"], default="stl")
+    x.add_argument("--latent", type=finite, nargs="+", action="append", help="latent value(s); repeat for several shapes")
+    x.add_argument("--resolution", type=count(2), default=None, help="grid cells along the longest axis")
+    x.add_argument("--format", choices=["stl", "ply", "obj"], default=None, help="mesh format of a 3D run (default stl)")
     x.add_argument("--out", help="output directory (default RUN/export)")
 
     pl = sub.add_parser("plot", help="draw the paper's figures for a run (PNG)")
     pl.add_argument("run_dir")
-    pl.add_argument("--resolution", type=int, default=None)
+    pl.add_argument("--resolution", type=count(2), default=None, help="grid cells along the longest axis")
 
     add_sweep_parser(sub)
     return p

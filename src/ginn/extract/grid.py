@@ -14,6 +14,7 @@
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -22,9 +23,13 @@ import torch
 from scipy import ndimage
 from torch import Tensor
 
+from ..errors import ConfigError
 from ..geometry.base import Box
 
-__all__ = ["Grid", "make_grid", "node_grid", "proportional_counts", "periodic_points", "label_components", "interpolate", "grid_volume"]
+__all__ = [
+    "Grid", "make_grid", "node_grid", "proportional_counts", "check_grid_memory", "periodic_points", "label_components",
+    "interpolate", "grid_volume",
+]
 
 
 @dataclass(frozen=True)
@@ -115,6 +120,23 @@ def make_grid(domain: Box, resolution: int) -> Grid:
         c = resolution * e / ext.max()
         cells.append(resolution if e == ext.max() else max(m, int(round(c / m)) * m))
     return Grid(lo, hi, tuple(cells))
+
+
+def check_grid_memory(n_nodes: int, bytes_per_node: int, what: str) -> None:
+    """Refuse a grid whose arrays would need more than half of this machine's memory.
+
+    Raises:
+        ConfigError: one line naming ``what`` (e.g. ``resolution 100000000``), the estimate and
+            the memory there is.
+    """
+    try:
+        total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):  # no sysconf: nothing to compare with
+        return
+    need = float(n_nodes) * bytes_per_node
+    if need > total / 2:
+        raise ConfigError(f"{what}: a grid of {float(n_nodes):.3g} nodes needs about {need / 2**30:.3g} GiB; "
+                          f"this machine has {total / 2**30:.3g} GiB")
 
 
 def proportional_counts(box: Box, n: int) -> tuple[int, ...]:

@@ -4,9 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import yaml
-
-from ..errors import SpecError
+from ..errors import ConfigError, SpecError
+from ..yamlfile import load_yaml
 from .spec import ProblemSpec, validate_spec
 
 PRESET_DIR = Path(__file__).resolve().parent / "presets"
@@ -41,6 +40,8 @@ def spec_text(path_or_name: str | Path) -> str:
 
 def _locate(path_or_name: str | Path) -> Path:
     p = Path(path_or_name).expanduser()
+    if p.is_dir():
+        raise SpecError(f"spec {p}: is a directory, not a YAML spec file")
     if p.suffix.lower() in (".yaml", ".yml") or p.is_file() or len(p.parts) > 1:
         if not p.is_file():
             raise SpecError(f"spec file not found: {p}")
@@ -51,12 +52,9 @@ def _locate(path_or_name: str | Path) -> Path:
 def parse_spec(text: str, base_dir: Path | None = None, source: str = "<string>") -> ProblemSpec:
     """Validate a spec given as YAML text (relative mesh paths resolve against ``base_dir``)."""
     try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as e:
-        mark = getattr(e, "problem_mark", None)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
-        problem = getattr(e, "problem", None) or type(e).__name__
-        raise SpecError(f"spec {source}: YAML syntax error{where}: {problem}") from None
+        data = load_yaml(text, f"spec {source}")
+    except ConfigError as e:
+        raise SpecError(str(e)) from None
     return validate_spec(data, base_dir=base_dir, source=source)
 
 

@@ -10,10 +10,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from ..config import build_config, nested
 from ..errors import ConfigError
+from ..yamlfile import load_yaml
 from .objective import DEFAULT_OBJECTIVE
 
 __all__ = ["SearchSpace", "parse_space", "load_space", "check_space_keys", "suggest"]
@@ -140,10 +139,9 @@ def load_space(path: str | Path) -> SearchSpace:
     if not p.is_file():
         raise ConfigError(f"--space {p}: no such file")
     try:
-        data = yaml.safe_load(p.read_text())
-    except yaml.YAMLError as e:
-        line = getattr(getattr(e, "problem_mark", None), "line", None)
-        raise ConfigError(f"--space {p}: not valid YAML" + (f" (line {line + 1})" if line is not None else "")) from None
+        data = load_yaml(p.read_text(), f"--space {p}")
+    except ConfigError as e:
+        raise ConfigError(f"--space {p}: not valid YAML ({str(e).removeprefix(f'--space {p}: ')})") from None
     return parse_space(data, f"--space {p}")
 
 

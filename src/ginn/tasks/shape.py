@@ -9,6 +9,7 @@ projecting the domain samples closest to ``f = 0`` onto the zero level set.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import torch
@@ -21,6 +22,7 @@ from ..errors import ConfigError, GinnError
 from ..eval.plateau import evaluate_plateau
 from ..eval.shapes import evaluate_shapes, format_table
 from ..extract.export import export_shapes
+from ..extract.grid import check_grid_memory, make_grid
 from ..geometry import sampling
 from ..levelset import project_to_zero
 from ..losses import constraints as C
@@ -312,7 +314,14 @@ class ShapeTask(Task):
     # --- results -----------------------------------------------------------------------------
 
     def _output_resolution(self, resolution: int | None = None) -> int:
-        return int(resolution or self.cfg.output.resolution or default_resolution("output", self.d))
+        return self._checked(resolution or self.cfg.output.resolution or default_resolution("output", self.d), 32)
+
+    def _checked(self, resolution: int, bytes_per_node: int) -> int:
+        """``resolution`` if it is a grid this machine can hold (a one-line ConfigError otherwise)."""
+        if isinstance(resolution, bool) or not isinstance(resolution, int) or resolution < 2:
+            raise ConfigError(f"resolution {resolution!r}: must be an integer >= 2")
+        check_grid_memory(make_grid(self.problem.domain, resolution).n_nodes, bytes_per_node, f"resolution {resolution}")
+        return resolution
 
     def finalize(self, model: nn.Module, run_dir: Path) -> list[Path]:
         """``shapes/`` (2D: contour polylines and drawings per shape; 3D: one STL per shape),
@@ -330,7 +339,7 @@ class ShapeTask(Task):
     def evaluate(self, model: nn.Module, resolution: int | None = None, out_dir: Path | None = None) -> dict:
         """The Appendix B.1 metrics of every shape (:func:`ginn.eval.shapes.evaluate_shapes`), and the
         comparison with the reference surface where the problem has one."""
-        res = evaluate_shapes(model, self.Z, self.problem, resolution)
+        res = evaluate_shapes(model, self.Z, self.problem, self._checked(resolution or default_resolution("eval", self.d), 64))
         if self.problem.reference == "minimal-surface":
             res.update(evaluate_plateau(model, self.problem))
         return res
@@ -343,8 +352,12 @@ class ShapeTask(Task):
         return text
 
     def export(self, model: nn.Module, latents: Tensor | list[list[float]] | None, out_dir: Path,
-               resolution: int | None = None, mesh_format: str = "stl") -> list[Path]:
-        """Meshes (3D) or contours (2D) for ``latents`` ``(S, k)`` (None: the trained latents)."""
+               resolution: int | None = None, mesh_format: str | None = None) -> list[Path]:
+        """Meshes (3D, ``mesh_format`` stl (default), ply or obj) or contours (2D) for ``latents``
+        ``(S, k)`` (None: the trained latents)."""
+        if self.d == 2 and mesh_format is not None:
+            raise GinnError(f"--format {mesh_format}: a 2D run exports contours (json, csv, npz, svg, png); "
+                            "--format chooses the mesh format of a 3D run")
         Z = self.Z
         if latents is not None:
             if Z is None:
@@ -353,12 +366,16 @@ class ShapeTask(Task):
             k = Z.shape[1]
             if any(len(v) != k for v in rows):
                 raise GinnError(f"--latent: this model takes {k} latent value(s) per shape")
+            if not all(math.isfinite(float(x)) for v in rows for x in v):
+                raise GinnError("--latent: latent values must be finite numbers")
             Z = torch.tensor(rows, dtype=Z.dtype, device=Z.device)
         return export_shapes(model, Z, self.problem.domain, Path(out_dir), self._output_resolution(resolution),
-                             mesh_format=mesh_format)
+                             mesh_format=mesh_format or "stl")
 
     def plot(self, model: nn.Module, run_dir: Path, resolution: int | None = None) -> list[Path]:
         """The paper-style figures into ``run_dir/figures`` (:func:`ginn.viz.plot.plot_run`)."""
         run_dir = Path(run_dir)
+        if resolution is not None:
+            self._checked(resolution, 32)
         return plot_run(model, self.Z, self.problem, run_dir / "figures", metrics_jsonl=run_dir / "metrics.jsonl",
                         resolution=resolution)

@@ -369,27 +369,55 @@ class ConnectednessLoss(ConnectednessLossBase):
 
     # --- state ---------------------------------------------------------------------------------
 
-    def state_dict(self) -> dict[str, Tensor]:
-        """Tensors only: the persistent critical points, the latents they belong to, counters."""
-        d = self.domain.dim
-        pts = self.points
-        return {
-            "points_x": (pts.x if pts is not None else torch.zeros(0, d)).detach().cpu(),
-            "points_shape": (pts.shape if pts is not None else torch.zeros(0, dtype=torch.long)).cpu(),
-            "latents": (self._latents if self._latents is not None else torch.zeros(0, 0)).detach().cpu(),
-            "step": torch.tensor(self.step),
-            "last_full": torch.tensor(self.last_full),
-        }
+    _POINT_FIELDS = ("x", "shape", "f", "grad_norm", "eigvals", "eigvecs")
+    _PATH_FIELDS = ("path_start", "path_end", "path_descending", "path_length", "path_outside_length", "path_anchor", "ends")
 
-    def load_state_dict(self, state: dict[str, Tensor]) -> None:
-        """Restore; the next call runs a full build seeded with the stored points."""
+    def state_dict(self) -> dict:
+        """Everything the next call depends on, as tensors and plain numbers (checkpoints stay
+        pickle-free): the critical points, the surface network's paths, the penalties, the latents
+        they belong to, the counters and the seed generator's state. A loss restored from it
+        continues exactly as the uninterrupted one would."""
+        state: dict = {
+            "format": 2,
+            "step": self.step,
+            "last_full": self.last_full,
+            "latents": (self._latents if self._latents is not None else torch.zeros(0, 0)).detach().cpu(),
+            "generator": self.generator.get_state(),
+        }
+        if self.points is not None and self.network is not None and self.penalty is not None:
+            state["points"] = {k: getattr(self.points, k).detach().cpu() for k in self._POINT_FIELDS}
+            state["paths"] = {k: torch.from_numpy(np.ascontiguousarray(getattr(self.network, k))) for k in self._PATH_FIELDS}
+            state["penalty"] = torch.from_numpy(np.asarray(self.penalty, dtype=np.float64))
+            ex, es, ep = self._extra
+            state["extra"] = {"x": ex.detach().cpu(), "shape": es.cpu(), "weight": torch.from_numpy(np.asarray(ep, dtype=np.float64))}
+            state["components"] = [int(r.n_components) for r in self._results]
+            state["unreachable"] = [int(r.unreachable_pairs) for r in self._results]
+        return state
+
+    def load_state_dict(self, state: dict) -> None:
+        """Restore :meth:`state_dict`. A state without the network (one written before the first
+        call, or by an older version) seeds the next full build with the stored points instead."""
         self.step = int(state["step"])
         self.last_full = int(state["last_full"])
-        x = state["points_x"].to(self.device, self.dtype)
-        self._seeds = (x, state["points_shape"].to(self.device))
         lat = state["latents"]
         self._latents = lat.to(self.device, self.dtype) if lat.numel() else None
         self.points = self.network = self.penalty = None
+        self._seeds = None
+        if "generator" in state:
+            self.generator.set_state(state["generator"])
+        if "points" in state:
+            p = state["points"]
+            self.points = CriticalPoints(**{
+                k: p[k].to(self.device) if k == "shape" else p[k].to(self.device, self.dtype) for k in self._POINT_FIELDS})
+            self.network = SurfaceNetwork(self.points, **{k: state["paths"][k].numpy().copy() for k in self._PATH_FIELDS})
+            self.penalty = state["penalty"].numpy().copy()
+            e = state["extra"]
+            self._extra = (e["x"].to(self.device, self.dtype), e["shape"].to(self.device), e["weight"].numpy().copy())
+            self._results = [Penalties(np.zeros(0), c, u, np.zeros(0, np.int64))
+                             for c, u in zip(state["components"], state["unreachable"])]
+        elif "points_x" in state:  # the first format: the points only
+            x = state["points_x"].to(self.device, self.dtype)
+            self._seeds = (x, state["points_shape"].to(self.device))
 
     # --- work ----------------------------------------------------------------------------------
 

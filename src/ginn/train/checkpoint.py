@@ -11,7 +11,9 @@ from __future__ import annotations
 
 import os
 import pickle
+import pickletools
 import tempfile
+import zipfile
 from pathlib import Path
 from typing import Any
 
@@ -25,7 +27,13 @@ class CheckpointError(GinnError):
 
 
 def save_checkpoint(path: str | Path, state: dict[str, Any]) -> None:
-    """Atomically write ``state`` to ``path`` (temporary file + fsync + rename)."""
+    """Atomically write ``state`` to ``path`` (temporary file + fsync + rename): a failure (a full
+    disk, a kill) leaves the previous checkpoint as it was.
+
+    Raises:
+        OSError: the file could not be written (torch's own error for a short write is turned
+            back into the ``OSError`` behind it, e.g. ``ENOSPC``).
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
@@ -35,9 +43,12 @@ def save_checkpoint(path: str | Path, state: dict[str, Any]) -> None:
             fh.flush()
             os.fsync(fh.fileno())
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as e:
         if os.path.exists(tmp):
             os.unlink(tmp)
+        cause = e.__cause__ or e.__context__
+        if not isinstance(e, OSError) and isinstance(cause, OSError):
+            raise OSError(cause.errno, cause.strerror, str(path)) from None
         raise
     try:  # make the rename durable
         dfd = os.open(path.parent, os.O_RDONLY)
@@ -49,18 +60,51 @@ def save_checkpoint(path: str | Path, state: dict[str, Any]) -> None:
         pass
 
 
+def _first_line(e: BaseException, limit: int = 160) -> str:
+    """The first line of an error's message, shortened at a word boundary."""
+    text = str(e).strip()
+    line = text.splitlines()[0] if text else type(e).__name__
+    if len(line) > limit:
+        line = line[:limit].rsplit(" ", 1)[0] + " ..."
+    return line
+
+
 def load_checkpoint(path: str | Path, map_location: str | torch.device = "cpu") -> dict[str, Any]:
-    """Load a checkpoint safely. Raises :class:`CheckpointError` for missing, corrupt or unsafe files."""
+    """Load a checkpoint safely. Raises :class:`CheckpointError` (one line) for a missing, empty,
+    corrupt or unsafe file."""
     path = Path(path)
     if not path.is_file():
         raise CheckpointError(f"no checkpoint at {path}")
     try:
-        return torch.load(path, map_location=map_location, weights_only=True)
+        size = path.stat().st_size
+    except OSError as e:
+        raise CheckpointError(f"cannot read checkpoint {path}: {e.strerror}") from None
+    if size == 0:
+        raise CheckpointError(f"checkpoint {path} is empty (0 bytes): not a ginn checkpoint")
+    if not zipfile.is_zipfile(path) and not _is_pickle(path):
+        raise CheckpointError(f"checkpoint {path} is not a torch checkpoint (corrupt, or another kind of file)")
+    try:
+        state = torch.load(path, map_location=map_location, weights_only=True)
     except pickle.UnpicklingError as e:
-        first = str(e).strip().splitlines()[0] if str(e).strip() else "unsafe content"
-        raise CheckpointError(f"refusing to load {path}: it contains objects other than tensors and plain data ({first[:120]})") from None
-    except (RuntimeError, EOFError, OSError) as e:
-        raise CheckpointError(f"cannot read checkpoint {path}: {str(e).splitlines()[0][:160]}") from None
+        what = [line.strip() for line in str(e).splitlines() if line.strip().startswith("Unsupported")]
+        raise CheckpointError(f"refusing to load {path}: it contains objects other than tensors and plain data"
+                              + (f" ({what[0][:120]})" if what else "")) from None
+    except Exception as e:  # noqa: BLE001 - torch raises many kinds for a damaged archive; one line for the user
+        raise CheckpointError(f"cannot read checkpoint {path}: {_first_line(e)}") from None
+    if not isinstance(state, dict):
+        raise CheckpointError(f"checkpoint {path} is not a ginn checkpoint (not a mapping)")
+    return state
+
+
+def _is_pickle(path: Path) -> bool:
+    """Whether a file parses as a pickle stream (read with ``pickletools``, nothing is executed)."""
+    try:
+        with open(path, "rb") as fh:
+            for _ in pickletools.genops(fh):
+                pass
+        return True
+    except Exception:  # noqa: BLE001 - any parse failure means: not a pickle
+        return False
 
 
 def rng_state(gen: torch.Generator) -> dict[str, Any]:

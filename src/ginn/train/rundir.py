@@ -1,23 +1,34 @@
-"""Run directories: create and record (``ginn.runs`` loads them).
+"""Run directories: create them, record what a run is and how it is doing (``ginn.runs`` loads them).
 
 Layout of ``runs/<problem>-<timestamp>/`` (or ``--out DIR``)::
 
     config.yaml         the resolved RunConfig (every default filled in)
     problem.yaml        a copy of the problem spec that was trained
     env.json            package versions, device, seed, command line, start time
-    metrics.jsonl       one JSON line per logging step with every loss term
+    metrics.jsonl       one JSON line per logged iteration: ``step`` is the 0-based index of the
+                        iteration whose loss terms the line holds; events (rollback, interrupted)
     checkpoints/last.pt the latest checkpoint (atomic; safe to load)
-    status.json         "running" / "interrupted" / "completed", step, wall time
+    status.json         running | interrupted | completed | failed | pruned; ``step`` is the number
+                        of completed iterations; a running process's pid, host and heartbeat
     ... result files written by the task at the end (shapes, meshes, figures)
+
+Every write that fails (a read-only directory, a full disk) raises a one-line
+:class:`~ginn.errors.GinnError` that names the file.
 """
 
 from __future__ import annotations
 
 import datetime as _dt
+import errno
 import json
+import os
 import platform
 import shutil
+import socket
 import sys
+import time
+import warnings
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy
@@ -28,6 +39,7 @@ import yaml
 from ..config import RunConfig, config_to_dict
 from ..errors import ConfigError, GinnError
 from ..version import __version__
+from ..yamlfile import load_yaml
 
 
 def slug(name: str) -> str:
@@ -35,22 +47,80 @@ def slug(name: str) -> str:
     return "".join(c if c.isalnum() or c in "-_" else "-" for c in name)
 
 
+def io_error(e: OSError, path: str | Path, doing: str = "write") -> GinnError:
+    """A one-line error for a failed file operation (the disk full, no permission, ...)."""
+    if e.errno == errno.ENOSPC:
+        return GinnError(f"{path}: no space left on device")
+    if e.errno in (errno.EACCES, errno.EPERM, errno.EROFS):
+        why = "read-only file system" if e.errno == errno.EROFS else "permission denied"
+        return GinnError(f"{path}: cannot {doing} ({why})")
+    return GinnError(f"{path}: cannot {doing} ({e.strerror or type(e).__name__})")
+
+
 def new_run_dir(problem_name: str, out: str | Path | None = None, root: str | Path = "runs") -> Path:
-    """A fresh directory ``root/<problem>-<timestamp>`` (or ``out``, which must be empty or new)."""
-    if out is not None:
-        p = Path(out)
-        if p.exists() and any(p.iterdir()):
-            raise ConfigError(f"--out {p}: directory exists and is not empty (use `ginn resume {p}` to continue it)")
-    else:
+    """A fresh directory ``root/<problem>-<timestamp>`` (or ``out``, which must be empty or new).
+
+    The directory is claimed atomically (an exclusive ``mkdir``, or an exclusive marker file in an
+    existing empty ``out``), so two processes never share one.
+    """
+    try:
+        if out is not None:
+            p = Path(out)
+            if p.exists() and not p.is_dir():
+                raise ConfigError(f"--out {p}: exists and is not a directory")
+            p.mkdir(parents=True, exist_ok=True)
+            if any(q.name != _CLAIM for q in p.iterdir()):
+                raise ConfigError(f"--out {p}: directory exists and is not empty (use `ginn resume {p}` to continue it)")
+            if not _claim(p / _CLAIM):
+                raise ConfigError(f"--out {p}: another process is starting a run there")
+            return p
         stamp = _dt.datetime.now().strftime("%Y%m%d-%H%M%S")
-        safe = slug(problem_name)
-        p = Path(root) / f"{safe}-{stamp}"
-        i = 1
-        while p.exists():
-            p = Path(root) / f"{safe}-{stamp}-{i}"
-            i += 1
-    p.mkdir(parents=True, exist_ok=True)
-    return p
+        base = Path(root) / f"{slug(problem_name)}-{stamp}"
+        base.parent.mkdir(parents=True, exist_ok=True)
+        for i in range(1000):
+            p = base if i == 0 else base.with_name(f"{base.name}-{i}")
+            try:
+                p.mkdir()
+            except FileExistsError:
+                continue
+            _claim(p / _CLAIM)
+            return p
+        raise GinnError(f"{root}: could not create a new run directory for {problem_name}")
+    except OSError as e:
+        raise io_error(e, out if out is not None else root, "create a run directory in") from None
+
+
+#: marker of a claimed run directory (removed once config.yaml is written)
+_CLAIM = ".ginn-claim"
+
+
+def _claim(marker: Path) -> bool:
+    """Create ``marker`` exclusively with this process's pid; a marker left by a process that is
+    gone is taken over. Returns False when a live process holds it."""
+    for _ in range(2):
+        try:
+            with marker.open("x") as fh:
+                fh.write(str(os.getpid()))
+            return True
+        except FileExistsError:
+            try:
+                pid = int(marker.read_text().strip() or 0)
+            except (OSError, ValueError):
+                pid = 0
+            if pid > 0 and _pid_alive(pid):
+                return False
+            marker.unlink(missing_ok=True)
+    return False
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
 
 
 def environment(cfg: RunConfig) -> dict:
@@ -73,19 +143,182 @@ def environment(cfg: RunConfig) -> dict:
 
 
 def write_run_files(run_dir: Path, cfg: RunConfig, spec_path: Path | None) -> None:
-    (run_dir / "config.yaml").write_text(yaml.safe_dump(config_to_dict(cfg), sort_keys=False))
-    if spec_path is not None:
-        shutil.copyfile(spec_path, run_dir / "problem.yaml")
-    (run_dir / "env.json").write_text(json.dumps(environment(cfg), indent=2))
-
-
-def write_status(run_dir: Path, status: str, step: int, seconds: float) -> None:
-    (run_dir / "status.json").write_text(json.dumps({"status": status, "step": step, "seconds": round(seconds, 2)}))
+    """``config.yaml``, ``problem.yaml`` (a copy of the spec file) and ``env.json``."""
+    target = run_dir / "config.yaml"
+    try:
+        target.write_text(yaml.safe_dump(config_to_dict(cfg, relevant_only=True), sort_keys=False))
+        if spec_path is not None:
+            shutil.copyfile(spec_path, run_dir / "problem.yaml")
+        (run_dir / "env.json").write_text(json.dumps(environment(cfg), indent=2))
+        (run_dir / _CLAIM).unlink(missing_ok=True)
+    except OSError as e:
+        raise io_error(e, e.filename or target) from None
 
 
 def read_config_dict(run_dir: Path) -> dict:
-    """The raw ``config.yaml`` of a run directory. Raises :class:`GinnError` if there is none."""
-    p = Path(run_dir) / "config.yaml"
+    """The raw ``config.yaml`` of a run directory.
+
+    Raises:
+        GinnError: no run directory, no or an unreadable ``config.yaml`` (one line).
+    """
+    run_dir = Path(run_dir)
+    if not run_dir.is_dir():
+        raise GinnError(f"{run_dir} is not a ginn run directory (no such directory)")
+    p = run_dir / "config.yaml"
     if not p.is_file():
         raise GinnError(f"{run_dir} is not a ginn run directory (no config.yaml)")
-    return yaml.safe_load(p.read_text()) or {}
+    try:
+        data = load_yaml(p.read_text(), str(p))
+    except OSError as e:
+        raise io_error(e, p, "read") from None
+    except ConfigError as e:
+        raise GinnError(str(e)) from None
+    if not isinstance(data, dict):
+        raise GinnError(f"{p}: not a run configuration (expected a mapping)")
+    return data
+
+
+# --- status ---------------------------------------------------------------------------------------
+
+
+@dataclass
+class Status:
+    """What ``status.json`` says about a run.
+
+    Attributes:
+        status: ``running``, ``interrupted``, ``completed``, ``failed``, ``pruned`` (or ``unknown``).
+        step: completed iterations.
+        seconds: training time so far.
+        reason: why it failed or was stopped (one line), or "".
+        pid, host: the training process while running.
+        heartbeat: wall-clock time (seconds since the epoch) of the last update while running.
+        heartbeat_every: the longest expected interval between updates (seconds).
+    """
+
+    status: str
+    step: int = 0
+    seconds: float = 0.0
+    reason: str = ""
+    pid: int | None = None
+    host: str = ""
+    heartbeat: float | None = None
+    heartbeat_every: float = 60.0
+
+    def alive(self, now: float | None = None) -> bool:
+        """Whether a ``running`` run's process is still there: on this host, whether its pid
+        exists; elsewhere, whether the heartbeat is at most three intervals (and a minute) old."""
+        if self.status != "running":
+            return False
+        if self.host == socket.gethostname() and self.pid is not None:
+            return _pid_alive(self.pid)
+        now = time.time() if now is None else now
+        return self.heartbeat is not None and now - self.heartbeat <= 3 * self.heartbeat_every + 60
+
+    def describe(self) -> str:
+        """One line: ``completed at iteration 500 (41.2 s)``, ``running at iteration 120 (pid 4242)``,
+        ``not running (last seen 2026-12-01 10:15:02 at iteration 180)``, ``failed at ...: reason``."""
+        if self.status == "running":
+            if self.alive():
+                return f"running at iteration {self.step} (pid {self.pid} on {self.host})"
+            seen = _dt.datetime.fromtimestamp(self.heartbeat).isoformat(sep=" ", timespec="seconds") if self.heartbeat else "never"
+            return f"not running (last seen {seen} at iteration {self.step}; `ginn resume` continues it)"
+        text = f"{self.status} at iteration {self.step} ({self.seconds:.1f} s of training)"
+        return text + (f": {self.reason}" if self.reason else "")
+
+
+def write_status(run_dir: Path, status: str, step: int, seconds: float, reason: str = "",
+                 heartbeat_every: float = 60.0) -> None:
+    """Write ``status.json`` atomically; a running status carries this process's pid, host and a
+    heartbeat (now)."""
+    data: dict = {"status": status, "step": int(step), "seconds": round(float(seconds), 2)}
+    if reason:
+        data["reason"] = reason
+    if status == "running":
+        data.update(pid=os.getpid(), host=socket.gethostname(), heartbeat=round(time.time(), 3),
+                    heartbeat_every=round(float(heartbeat_every), 3))
+    path = Path(run_dir) / "status.json"
+    tmp = path.with_name(path.name + ".tmp")
+    try:
+        tmp.write_text(json.dumps(data))
+        os.replace(tmp, path)
+    except OSError as e:
+        tmp.unlink(missing_ok=True)
+        raise io_error(e, path) from None
+
+
+def read_status(run_dir: Path) -> Status:
+    """The run's :class:`Status` (``unknown`` when ``status.json`` is missing or unreadable)."""
+    p = Path(run_dir) / "status.json"
+    try:
+        data = json.loads(p.read_text())
+        fields = {k: data[k] for k in Status.__dataclass_fields__ if k in data}
+        return Status(**fields)
+    except (OSError, ValueError, TypeError):
+        return Status("unknown")
+
+
+# --- metrics.jsonl --------------------------------------------------------------------------------
+
+
+def read_metrics(path: Path) -> list[dict]:
+    """The records of a ``metrics.jsonl``; a line that is not a JSON object is skipped with a warning."""
+    out = []
+    try:
+        text = Path(path).read_text()
+    except OSError as e:
+        raise io_error(e, path, "read") from None
+    for i, line in enumerate(text.splitlines(), 1):
+        if not line.strip():
+            continue
+        try:
+            rec = json.loads(line)
+        except ValueError:
+            rec = None
+        if not isinstance(rec, dict):
+            warnings.warn(f"{path}:{i}: skipped a line that is not a JSON record", stacklevel=2)
+            continue
+        out.append(rec)
+    return out
+
+
+def truncate_metrics(path: Path, step: int) -> int:
+    """Cut ``metrics.jsonl`` back to a checkpoint at ``step`` completed iterations: the records of
+    iterations ``>= step`` (logged after that checkpoint) and any partial last line are dropped
+    (the latter with a warning). Rewritten atomically; returns the number of records dropped."""
+    path = Path(path)
+    if not path.is_file():
+        return 0
+    try:
+        text = path.read_text()
+    except OSError as e:
+        raise io_error(e, path, "read") from None
+    keep, dropped = [], 0
+    lines = text.split("\n")
+    for i, line in enumerate(lines):
+        if not line.strip():
+            continue
+        try:
+            rec = json.loads(line)
+        except ValueError:
+            rec = None
+        if not isinstance(rec, dict):
+            where = "the partial last line" if i >= len(lines) - 2 else f"line {i + 1}"
+            warnings.warn(f"{path}: dropped {where}, which is not a JSON record", stacklevel=2)
+            dropped += 1
+            continue
+        s = rec.get("step")
+        # iteration records (and skipped iterations) carry the 0-based index of their iteration;
+        # other events the number of completed iterations when they happened
+        index = "event" not in rec or rec["event"] == "skipped_non_finite"
+        if isinstance(s, int) and (s >= step if index else s > step):
+            dropped += 1
+            continue
+        keep.append(line)
+    tmp = path.with_name(path.name + ".tmp")
+    try:
+        tmp.write_text("".join(line + "\n" for line in keep))
+        os.replace(tmp, path)
+    except OSError as e:
+        tmp.unlink(missing_ok=True)
+        raise io_error(e, path) from None
+    return dropped

@@ -95,7 +95,7 @@ class Task(abc.ABC):
         return "\n".join(f"{k}: {v}" for k, v in metrics.items())
 
     def export(self, model: nn.Module, latents: Tensor | list[list[float]] | None, out_dir: Path,
-               resolution: int | None = None, mesh_format: str = "stl") -> list[Path]:
+               resolution: int | None = None, mesh_format: str | None = None) -> list[Path]:
         """Meshes (3D) or contours (2D) of the model at ``latents`` (None: the trained ones) into
         ``out_dir``; returns the written paths."""
         raise GinnError(f"export works on shape runs; a {self.kind} run writes its results at the end of training")

@@ -6,10 +6,16 @@ Reliability guarantees:
   ``max_bad_steps`` consecutive bad steps the run rolls back to the last checkpoint and continues
   with the learning rate multiplied by ``rollback_lr_factor``.
 * SIGINT / SIGTERM finish the current step, write a checkpoint and stop cleanly (status
-  ``"interrupted"``); ``ginn resume RUN_DIR`` continues. After ``kill -9`` at most
-  ``checkpoint_every`` iterations are lost.
-* On CPU, resuming reproduces an uninterrupted run bitwise: the checkpoint holds the model,
-  optimiser, scheduler, balancer, task state (e.g. critical points) and every RNG state.
+  ``"interrupted"``); ``ginn resume RUN_DIR`` continues. A checkpoint is written every
+  ``checkpoint_every`` iterations or ``checkpoint_seconds`` of training, whichever comes first, so
+  after ``kill -9`` at most that much work is lost.
+* On CPU, resuming reproduces an uninterrupted run bitwise from any checkpoint: the checkpoint
+  holds the model, optimiser, scheduler, balancer, task state (e.g. the connectedness loss's
+  critical points and surface network) and every RNG state; ``metrics.jsonl`` is cut back to it.
+* ``status.json`` tells the truth: ``running`` with the step and a heartbeat refreshed at every
+  checkpoint, then ``completed``, ``interrupted``, ``failed`` (with the one-line reason) or a
+  hook's status. A write that fails (full disk, read-only directory) is one line that names the
+  file and says that the last checkpoint is intact.
 """
 
 from __future__ import annotations
@@ -26,10 +32,11 @@ import torch
 from torch import nn
 
 from ..config import DTYPES, RunConfig, TrainingConfig
-from ..errors import GinnError
+from ..errors import ConfigError, GinnError
 from .balancing import make_balancer
 from .checkpoint import load_checkpoint, rng_state, save_checkpoint, set_rng_state
 from .distributed import DistContext
+from .rundir import io_error, truncate_metrics, write_status
 from .task import Task
 
 
@@ -136,11 +143,20 @@ class Trainer:
         self.lr_scale = 1.0
         self.scheduler = torch.optim.lr_scheduler.LambdaLR(self.optimizer, lambda it: lr_factor(t, it))
         self.terms = task.terms()
+        if not any(term.weight > 0 for term in self.terms.values()):
+            raise ConfigError(f"no active loss term: every loss weight of this {task.kind} problem is 0 "
+                              f"(terms: {', '.join(sorted(self.terms)) or 'none'}); set losses.<term>.weight")
+        first = min(term.start for term in self.terms.values() if term.weight > 0)
+        if first > 0:
+            raise ConfigError(f"no loss term is active at iteration 0 (the earliest start is {first}); "
+                              "set losses.<term>.start = 0 for at least one term")
         self.balancer = make_balancer(self.terms, cfg.balancing)
         self.step = 0
         self.bad_steps = 0
         self.rollbacks = 0
         self.elapsed = 0.0
+        self._saved_at = 0.0  # training time of the last checkpoint
+        self._step_seconds = 0.0  # the longest iteration so far
 
     # --- checkpoints -------------------------------------------------------------------------
 
@@ -156,6 +172,7 @@ class Trainer:
             "elapsed": self.elapsed,
             "lr_scale": self.lr_scale,
             "rollbacks": self.rollbacks,
+            "bad_steps": self.bad_steps,
             "model": self.model.state_dict(),
             "optimizer": self.optimizer.state_dict(),
             "scheduler": self.scheduler.state_dict(),
@@ -183,23 +200,39 @@ class Trainer:
         self.elapsed = float(state.get("elapsed", 0.0))
         self.lr_scale = float(state.get("lr_scale", 1.0))
         self.rollbacks = int(state.get("rollbacks", 0))
+        self.bad_steps = int(state.get("bad_steps", 0))
+        self._saved_at = self.elapsed
         self._apply_lr_scale()
 
     def save(self) -> None:
+        """Write the checkpoint (atomically) and refresh the heartbeat of ``status.json``."""
         if self.checkpoint_path is not None:
             state = self.state_dict()
             if self.is_main:
-                save_checkpoint(self.checkpoint_path, state)
+                try:
+                    save_checkpoint(self.checkpoint_path, state)
+                except OSError as e:
+                    raise GinnError(f"{io_error(e, self.checkpoint_path)}; {self._intact()}") from None
+                self._status("running")
             if self.dist is not None:
                 self.dist.barrier()
+        self._saved_at = self.elapsed
 
     def resume(self) -> bool:
-        """Load the last checkpoint of ``run_dir`` if there is one. Returns whether it did."""
+        """Load the last checkpoint of ``run_dir`` if there is one, and cut ``metrics.jsonl`` back
+        to it. Returns whether it did."""
         p = self.checkpoint_path
         if p is None or not p.exists():
             return False
         self.load_state_dict(load_checkpoint(p, map_location=self.device))
+        if self.run_dir is not None and self.is_main:
+            truncate_metrics(self.run_dir / "metrics.jsonl", self.step)
         return True
+
+    def _status(self, status: str, reason: str = "") -> None:
+        if self.run_dir is not None and self.is_main:
+            every = max(self.cfg.training.checkpoint_seconds, self._step_seconds)
+            write_status(self.run_dir, status, self.step, self.elapsed, reason, heartbeat_every=every)
 
     def _apply_lr_scale(self) -> None:
         t = self.cfg.training
@@ -228,10 +261,37 @@ class Trainer:
     def _log(self, record: dict) -> None:
         if self.run_dir is None or not self.is_main:
             return
-        with open(self.run_dir / "metrics.jsonl", "a") as fh:
-            fh.write(json.dumps(record) + "\n")
+        path = self.run_dir / "metrics.jsonl"
+        try:
+            with open(path, "a") as fh:
+                fh.write(json.dumps(record) + "\n")
+        except OSError as e:
+            raise GinnError(f"{io_error(e, path)}; {self._intact()}") from None
 
     # --- the loop ------------------------------------------------------------------------------
+
+    def _checkpoint_due(self) -> bool:
+        """Every ``checkpoint_every`` iterations, or when ``checkpoint_seconds`` of training have
+        passed since the last checkpoint (decided on rank 0's clock under torchrun)."""
+        t = self.cfg.training
+        due = self.step % t.checkpoint_every == 0 or self.elapsed - self._saved_at >= t.checkpoint_seconds
+        if self.dist is not None:
+            due = self.dist.broadcast_object(due)
+        return due
+
+    def _intact(self) -> str:
+        """What is left after a failed write: the last checkpoint, which a failed write never touches."""
+        p = self.checkpoint_path
+        if p is not None and p.is_file():
+            return f"the last checkpoint ({p}) is intact; `ginn resume {self.run_dir}` continues from it"
+        return "no checkpoint had been written yet"
+
+    def _try_status(self, status: str, reason: str) -> None:
+        """Record how the run ended, if the disk still lets us (the original error is what matters)."""
+        try:
+            self._status(status, reason)
+        except GinnError:
+            pass
 
     def active_terms(self, step: int) -> set[str]:
         return {k for k, t in self.terms.items() if t.weight > 0 and step >= t.start}
@@ -285,38 +345,53 @@ class Trainer:
         status = "completed"
         t0 = time.perf_counter() - self.elapsed
         stopped: StopRun | None = None
-        with _StopFlag() as flag:
-            while self.step < total_iters:
-                step = self.step
-                values = self.train_step()
-                self.elapsed = time.perf_counter() - t0
-                if values is not None:
-                    last = values
-                    try:
-                        for h in self.hooks:
-                            h(self, step, values)
-                    except StopRun as e:
-                        stopped, status = e, e.status
+        self._status("running")
+        try:
+            with _StopFlag() as flag:
+                while self.step < total_iters:
+                    step = self.step
+                    before = self.elapsed
+                    values = self.train_step()
+                    self.elapsed = time.perf_counter() - t0
+                    self._step_seconds = max(self._step_seconds, self.elapsed - before)
+                    if values is not None:
+                        last = values
+                        try:
+                            for h in self.hooks:
+                                h(self, step, values)
+                        except StopRun as e:
+                            stopped, status = e, e.status
+                            break
+                        if step % t.log_every == 0 or self.step == total_iters:
+                            rec = {"step": step, "time": round(self.elapsed, 3), "lr": self.optimizer.param_groups[0]["lr"]}
+                            rec.update(values)
+                            self._log(rec)
+                        if bar is not None:
+                            bar.update(1)
+                            if step % max(1, t.log_every) == 0:
+                                shown = {k: f"{v:.2e}" for k, v in values.items() if not k.startswith("_") and k != "grad_norm"}
+                                bar.set_postfix(shown, refresh=False)
+                    if values is not None and self.step > 0 and self._checkpoint_due():
+                        self.save()
+                    if flag.stop if self.dist is None else self.dist.any(flag.stop):
+                        status = "interrupted"
                         break
-                    if step % t.log_every == 0 or self.step == total_iters:
-                        rec = {"step": step, "time": round(self.elapsed, 3), "lr": self.optimizer.param_groups[0]["lr"]}
-                        rec.update(values)
-                        self._log(rec)
-                    if bar is not None:
-                        bar.update(1)
-                        if step % max(1, t.log_every) == 0:
-                            shown = {k: f"{v:.2e}" for k, v in values.items() if not k.startswith("_") and k != "grad_norm"}
-                            bar.set_postfix(shown, refresh=False)
-                if self.step % t.checkpoint_every == 0 and self.step > 0 and values is not None:
-                    self.save()
-                if flag.stop if self.dist is None else self.dist.any(flag.stop):
-                    status = "interrupted"
-                    break
-        if bar is not None:
-            bar.close()
-        self.save()
-        if status == "interrupted":
-            self._log({"step": self.step, "event": "interrupted", "signal": flag.signum})
-        elif stopped is not None:
-            self._log({"step": self.step, "event": status, "reason": str(stopped)})
+            if bar is not None:
+                bar.close()
+            self.save()
+            if status == "interrupted":
+                self._log({"step": self.step, "event": "interrupted", "signal": flag.signum})
+            elif stopped is not None:
+                self._log({"step": self.step, "event": status, "reason": str(stopped)})
+        except KeyboardInterrupt:
+            if bar is not None:
+                bar.close()
+            self._try_status("interrupted", "stopped without a checkpoint at this iteration; resume from the last one")
+            raise
+        except Exception as e:
+            if bar is not None:
+                bar.close()
+            self._try_status("failed", str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__)
+            raise
+        self._status(status, str(stopped) if stopped is not None else "")
         return TrainResult(self.model, status, self.step, self.elapsed, last, str(stopped) if stopped else "")

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import json
 import math
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -398,13 +399,17 @@ def plot_loss_curves(metrics_jsonl: str | Path, path: str | Path, keys: Sequence
     spanning decades. One panel per series: ``total`` first, then the loss terms, ``lr`` and
     ``grad_norm``, then ``_diagnostics``; wall-clock keys (``time``) are skipped."""
     rows = []
-    for line in Path(metrics_jsonl).read_text().splitlines():
+    for i, line in enumerate(Path(metrics_jsonl).read_text().splitlines(), 1):
         line = line.strip()
         if line:
             try:
-                rows.append(_flatten(json.loads(line)))
+                rec = json.loads(line)
             except json.JSONDecodeError:
+                rec = None
+            if not isinstance(rec, dict):
+                warnings.warn(f"{metrics_jsonl}:{i}: skipped a line that is not a JSON record", stacklevel=2)
                 continue
+            rows.append(_flatten(rec))
     series: dict[str, tuple[list, list]] = {}
     for i, r in enumerate(rows):
         step = next((r[k] for k in _STEP_KEYS if k in r), float(i))

@@ -37,7 +37,7 @@ from torch import Tensor, nn
 from ...config import GrayScottParams, GSParams, LossTerm, RunConfig, ShapeParams, parse_task_params
 from ...errors import ConfigError
 from ...eval.gray_scott import verify_run
-from ...extract.grid import periodic_points
+from ...extract.grid import check_grid_memory, periodic_points
 from ...fields import evaluate, laplacian
 from ...losses.diversity import aggregate
 from ...models import ConcatConditioning, FourierMLP, PeriodicEncoding, Siren
@@ -306,7 +306,10 @@ class GrayScottTask(Task):
 
     def evaluate(self, model: nn.Module, resolution: int | None = None, out_dir: Path | None = None) -> dict:
         """The four independent checks of :func:`ginn.eval.gray_scott.verify_run` on every trained latent."""
-        res = verify_run(model, self.latents(), self.params, resolution=resolution or 256, out_dir=out_dir)
+        n = resolution or 256
+        Z = self.latents()
+        check_grid_memory(n * n * (1 if Z is None else Z.shape[0]), 160, f"resolution {n}")
+        res = verify_run(model, Z, self.params, resolution=n, out_dir=out_dir)
         return {"problem": "gray-scott", **res}
 
     def format_metrics(self, metrics: dict) -> str:

@@ -1,0 +1,213 @@
+"""Every bad input and failing disk ends in one line ``ginn: error: ...`` that names the bad field,
+file or path, and exit status 2, never a traceback."""
+
+import contextlib
+import os
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from ginn import runs
+from ginn.cli import main
+from ginn.train.checkpoint import load_checkpoint
+
+TINY = ["--set", "latents.n_shapes=2", "--set", "model.hidden=[16,16]", "--set", "sampling.n_domain=128",
+        "--set", "sampling.n_outside=64", "--set", "sampling.n_interface=32", "--set", "sampling.n_boundary=32",
+        "--set", "training.threads=1"]
+
+
+@pytest.fixture(scope="module")
+def run_dir(tmp_path_factory) -> Path:
+    """A finished tiny obstacle run (6 iterations)."""
+    out = tmp_path_factory.mktemp("bad") / "run"
+    spec, cfg = runs.resolve("obstacle", "demo", {"training": {"iterations": 6}},
+                             sets=[s for s in TINY if s != "--set"])
+    runs.train(spec, cfg, out, progress=False, results=False)
+    return out
+
+
+def _copy(run: Path, where: Path) -> Path:
+    shutil.copytree(run, where)
+    return where
+
+
+def _run(args, capsys, monkeypatch, cwd) -> tuple[int, str]:
+    monkeypatch.chdir(cwd)
+    try:
+        code = main([str(a) for a in args])
+    except SystemExit as e:
+        code = e.code
+    return code, capsys.readouterr().err
+
+
+CASES = {
+    "--out is a file": (lambda r, t: (t / "f").write_text("x") and ["train", "obstacle", "--out", t / "f", *TINY],
+                        "not a directory"),
+    "no active loss": (lambda r, t: (t / "empty.yaml").write_text(
+        "name: empty\ngeometry: {dim: 2, domain: {lo: [0, 0], hi: [1, 1]}}\n") and ["train", t / "empty.yaml"],
+        "no active loss term"),
+    "export --resolution -3": (lambda r, t: ["export", r, "--resolution", "-3"], "--resolution"),
+    "eval --resolution 0": (lambda r, t: ["eval", r, "--resolution", "0"], "--resolution"),
+    "eval --resolution 1e8": (lambda r, t: ["eval", r, "--resolution", "100000000"], "resolution 100000000"),
+    "--set inf": (lambda r, t: ["train", "obstacle", "--set", "model.w0_first=.inf"], "model.w0_first"),
+    "--set nan": (lambda r, t: ["train", "obstacle", "--set", "training.lr=.nan"], "training.lr"),
+    "--device cuda:x": (lambda r, t: ["train", "obstacle", "--device", "cuda:x"], "--device"),
+    "spec is a directory": (lambda r, t: ["train", t], "is a directory"),
+    "duplicate spec key": (lambda r, t: (t / "dup.yaml").write_text(
+        "name: a\nname: b\ngeometry: {dim: 2, domain: {lo: [0, 0], hi: [1, 1]}}\n") and ["train", t / "dup.yaml"],
+        "duplicate key 'name'"),
+    "export --latent nan": (lambda r, t: ["export", r, "--latent", "nan"], "--latent"),
+    "2D export --format stl": (lambda r, t: ["export", r, "--format", "stl"], "--format stl"),
+    "--iterations 0": (lambda r, t: ["train", "obstacle", "--iterations", "0"], "--iterations"),
+    "resume below the current step": (lambda r, t: ["resume", _copy(r, t / "r"), "--iterations", "3"],
+                                      "already at iteration 6"),
+    "0-byte checkpoint": (lambda r, t: _empty_ckpt(_copy(r, t / "r")), "empty (0 bytes)"),
+    "random-bytes checkpoint": (lambda r, t: _random_ckpt(_copy(r, t / "r")), "not a torch checkpoint"),
+    "corrupt config.yaml": (lambda r, t: _corrupt_config(_copy(r, t / "r")), "config.yaml: YAML syntax error"),
+    "invalid config.yaml": (lambda r, t: _invalid_config(_copy(r, t / "r")), "config.yaml: config field 'training.lr'"),
+    "missing run": (lambda r, t: ["status", t / "nope"], "not a ginn run directory"),
+}
+
+
+def _empty_ckpt(run: Path) -> list:
+    (run / "checkpoints" / "last.pt").write_bytes(b"")
+    return ["eval", run]
+
+
+def _random_ckpt(run: Path) -> list:
+    (run / "checkpoints" / "last.pt").write_bytes(os.urandom(4096))
+    return ["resume", run, "--iterations", "9"]
+
+
+def _corrupt_config(run: Path) -> list:
+    (run / "config.yaml").write_text("training: [1, 2\n")
+    return ["eval", run]
+
+
+def _invalid_config(run: Path) -> list:
+    text = (run / "config.yaml").read_text().replace("lr: 0.001", "lr: -1.0")
+    (run / "config.yaml").write_text(text)
+    return ["plot", run]
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_bad_input_is_one_line_and_exit_2(case, run_dir, tmp_path, capsys, monkeypatch):
+    make, needle = CASES[case]
+    args = make(run_dir, tmp_path)
+    code, err = _run(args, capsys, monkeypatch, tmp_path)
+    lines = [line for line in err.splitlines() if not line.startswith("ginn: note:")]
+    assert code == 2, (case, err)
+    assert len(lines) == 1 and lines[0].startswith("ginn: error:"), (case, err)
+    assert "Traceback" not in err
+    assert needle in lines[0], (case, lines[0])
+
+
+# --- read-only directories and a full disk ------------------------------------------------------------
+
+
+@contextlib.contextmanager
+def _mount(path: Path, options: str):
+    """A tmpfs at ``path`` (root only); skips the test where mounting is not allowed."""
+    path.mkdir(parents=True, exist_ok=True)
+    r = subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(path)], capture_output=True, text=True)
+    if r.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs here ({r.stderr.strip() or 'mount failed'}): needs root in a container "
+                    "that allows mounts")
+    try:
+        yield path
+    finally:
+        subprocess.run(["umount", "-l", str(path)], capture_output=True)
+
+
+@contextlib.contextmanager
+def _read_only_copy(run: Path, where: Path):
+    """``run`` copied into a read-only directory: a read-only tmpfs as root, file modes otherwise."""
+    if os.geteuid() != 0:
+        dst = shutil.copytree(run, where / "run")
+        for p in [dst, *dst.rglob("*")]:
+            p.chmod(0o555 if p.is_dir() else 0o444)
+        try:
+            yield Path(dst)
+        finally:
+            for p in [dst, *Path(dst).rglob("*")]:
+                p.chmod(0o755)
+        return
+    with _mount(where / "mnt", "size=64m") as mnt:
+        dst = shutil.copytree(run, mnt / "run")
+        r = subprocess.run(["mount", "-o", "remount,ro", str(mnt)], capture_output=True, text=True)
+        if r.returncode != 0:
+            pytest.skip(f"cannot remount read-only: {r.stderr.strip()}")
+        yield Path(dst)
+
+
+@pytest.mark.parametrize("command", [["eval"], ["plot"], ["export"], ["resume", "--iterations", "9"]])
+def test_read_only_run_directory(command, run_dir, tmp_path, capsys, monkeypatch):
+    with _read_only_copy(run_dir, tmp_path) as ro:
+        args = [command[0], ro, *command[1:]]
+        code, err = _run(args, capsys, monkeypatch, tmp_path)
+    lines = [line for line in err.splitlines() if not line.startswith("ginn: note:")]
+    assert code == 2 and len(lines) == 1, err
+    assert str(ro) in lines[0] and ("read-only" in lines[0] or "permission denied" in lines[0]), lines[0]
+    assert "Traceback" not in err
+
+
+def test_train_into_a_read_only_directory(tmp_path, capsys, monkeypatch):
+    (tmp_path / "empty").mkdir()
+    with _read_only_copy(tmp_path / "empty", tmp_path) as ro:
+        code, err = _run(["train", "obstacle", "--out", ro / "new", *TINY], capsys, monkeypatch, tmp_path)
+    assert code == 2 and len(err.splitlines()) == 1, err
+    assert str(ro / "new") in err and ("read-only" in err or "permission denied" in err), err
+
+
+def test_full_disk_keeps_the_last_checkpoint(tmp_path, capsys, monkeypatch):
+    """On a tmpfs with room for one checkpoint but not for the second (written beside the first
+    before it replaces it), training stops with one line that says so, and the first checkpoint
+    is intact."""
+    spec, cfg = runs.resolve("obstacle", "demo", {"training": {"iterations": 1}},
+                             sets=[s for s in TINY if s != "--set"] + ["model.hidden=[128,128]"])
+    probe = runs.train(spec, cfg, tmp_path / "probe", progress=False, results=False).run_dir
+    size = (probe / "checkpoints" / "last.pt").stat().st_size
+    others = sum(p.stat().st_size for p in probe.iterdir() if p.is_file())
+    room = int(1.6 * size) + others + 64 * 1024
+    with _mount(tmp_path / "disk", f"size={room}") as disk:
+        args = ["train", "obstacle", "--out", disk / "run", "--iterations", "30", "--quiet", "--no-results",
+                "--set", "training.checkpoint_every=5", *TINY, "--set", "model.hidden=[128,128]"]
+        code, err = _run(args, capsys, monkeypatch, tmp_path)
+        assert code == 2 and len(err.splitlines()) == 1, err
+        assert "no space left on device" in err and "last checkpoint" in err, err
+        ck = load_checkpoint(disk / "run" / "checkpoints" / "last.pt")
+        assert ck["step"] == 5
+        assert not list((disk / "run" / "checkpoints").glob("*.tmp"))
+
+
+def test_the_python_api_refuses_the_same_inputs(run_dir):
+    from ginn.errors import GinnError
+
+    with pytest.raises(GinnError, match="finite"):
+        runs.export(run_dir, [[float("nan")]])
+    with pytest.raises(GinnError, match="GiB"):
+        runs.evaluate(run_dir, resolution=100_000_000)
+
+
+def test_a_run_directory_is_claimed_by_one_process(tmp_path):
+    from ginn.errors import ConfigError
+    from ginn.train.rundir import new_run_dir
+
+    out = tmp_path / "out"
+    assert new_run_dir("x", out) == out
+    with pytest.raises(ConfigError, match="another process"):  # claimed by this (live) process
+        new_run_dir("x", out)
+    (out / ".ginn-claim").write_text("999999999")  # left by a process that is gone: taken over
+    assert new_run_dir("x", out) == out
+    a, b = new_run_dir("x", root=tmp_path / "runs"), new_run_dir("x", root=tmp_path / "runs")
+    assert a != b and a.is_dir() and b.is_dir()
+
+
+def test_config_yaml_holds_only_the_model_fields_of_its_kind(run_dir):
+    import yaml
+
+    model = yaml.safe_load((run_dir / "config.yaml").read_text())["model"]
+    assert model["kind"] == "siren" and "w0_first" in model and "hidden" in model
+    assert not {"width", "n_blocks", "sigma", "n_features", "activation"} & set(model)

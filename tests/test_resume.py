@@ -1,0 +1,239 @@
+"""Resuming is exact: a run killed at any iteration and resumed from its last checkpoint ends with
+the weights of the uninterrupted run, bit for bit on CPU, for every kind of task; metrics.jsonl is
+cut back to the checkpoint; status.json tells a killed run from a running one."""
+
+import json
+import os
+import random
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import torch
+
+from ginn import runs
+from ginn.cli import main
+from ginn.config import build_config, config_to_dict
+from ginn.tasks import make_task
+from ginn.train.checkpoint import load_checkpoint
+from ginn.train.rundir import read_status, truncate_metrics
+from ginn.train.trainer import Trainer
+
+# the demo's four shapes with fewer domain samples: one shape stays in two pieces, so the
+# connectedness loss penalises a saddle at every step, with warm updates between rebuilds
+OBSTACLE = ["sampling.n_domain=512", "sampling.n_outside=256", "connectedness.every=3", "training.threads=1",
+            "training.log_every=1"]
+
+
+@pytest.fixture(autouse=True)
+def _threads():
+    n = torch.get_num_threads()
+    yield
+    torch.set_num_threads(n)
+
+
+def _weights(model) -> dict:
+    return {k: v.detach().clone() for k, v in model.state_dict().items()}
+
+
+def _same(a: dict, b: dict) -> bool:
+    return a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
+
+
+class _Kill(Exception):
+    """Stands in for a kill: the trainer stops without a checkpoint at this iteration."""
+
+
+def _run_with_kills(spec, cfg, out: Path, kills: list[int]):
+    """Train into ``out``, 'killed' after each iteration in ``kills`` and resumed from the last
+    checkpoint each time; returns the final model's weights."""
+    for k in kills:
+        task = make_task(spec, cfg)
+
+        def hook(trainer, step, values, k=k):
+            if step + 1 == k:
+                raise _Kill
+
+        tr = Trainer(task, cfg, out, progress=False, hooks=[hook])
+        tr.resume()
+        with pytest.raises(_Kill):
+            tr.train()
+    tr = Trainer(make_task(spec, cfg), cfg, out, progress=False)
+    assert tr.resume()
+    return _weights(tr.train().model)
+
+
+CASES = {
+    "surface network, diversity": ("obstacle", "demo", OBSTACLE),
+    "persistent homology": ("obstacle", "demo", [*OBSTACLE, "connectedness.method=persistent-homology",
+                                                 "connectedness.grid=32"]),
+    "augmented Lagrangian": ("obstacle", "demo", [*OBSTACLE, "balancing.method=augmented-lagrangian",
+                                                  "balancing.update_every=4", "balancing.mu_growth=2"]),
+    "mirror": ("mirror", None, ["training.threads=1", "params.n_samples=64"]),
+    "gray-scott": ("gray-scott", "quick", ["training.threads=1", "model.hidden=[16,8]", "latents.n_shapes=2",
+                                           "params.grid=16", "params.fine_grid=0", "params.step_reuse=4",
+                                           "params.flow_steps=0", "training.lr_restart_at=0"]),
+}
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_resume_is_exact_for_every_task_kind(case, tmp_path):
+    problem, preset, sets = CASES[case]
+    spec, cfg = runs.resolve(problem, preset, {"training": {"iterations": 24, "checkpoint_every": 5}}, sets=sets)
+    base = Trainer(make_task(spec, cfg), cfg, None, progress=False).train()
+    resumed = _run_with_kills(spec, cfg, tmp_path / "run", kills=[7, 13, 21])
+    assert _same(_weights(base.model), resumed), case
+
+
+def _poll_step(metrics: Path) -> int:
+    try:
+        lines = metrics.read_text().splitlines()
+    except OSError:
+        return -1
+    for line in reversed(lines):
+        try:
+            return int(json.loads(line)["step"])
+        except (ValueError, KeyError, TypeError):
+            continue
+    return -1
+
+
+def _cli(*args: str, out: Path, sets: list[str]) -> subprocess.Popen:
+    cmd = [sys.executable, "-m", "ginn", "train", *args, "--out", str(out), "--quiet", "--no-results"]
+    for s in sets:
+        cmd += ["--set", s]
+    return subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+
+
+def test_sigkill_at_random_iterations_resumes_bitwise(tmp_path, capsys):
+    """``kill -9`` at five random iterations of a real ``ginn train`` process (checkpoints every
+    0.2 s of training, so at arbitrary steps; one kill may come before the first checkpoint, which
+    restarts the run), then ``ginn resume``: the final weights equal the uninterrupted run's, and a
+    killed run reads as ``not running``."""
+    sets = [*OBSTACLE, "training.iterations=40", "training.checkpoint_every=1000", "training.checkpoint_seconds=0.2"]
+    spec, cfg = runs.resolve("obstacle", "demo", {"output": {"results": False}}, sets=sets)
+    base = Trainer(make_task(spec, cfg), cfg, None, progress=False).train()
+    rng = random.Random(0)
+    for i, target in enumerate(sorted(rng.sample(range(4, 36), 5))):
+        out = tmp_path / f"kill{i}"
+        proc = _cli("obstacle", "--preset", "demo", out=out, sets=sets)
+        deadline = time.time() + 120
+        while _poll_step(out / "metrics.jsonl") < target and proc.poll() is None and time.time() < deadline:
+            time.sleep(0.02)
+        assert proc.poll() is None, f"the run ended before iteration {target}: {proc.stderr.read()}"
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait()
+        assert read_status(out).status in ("running", "unknown")
+        assert main(["status", str(out)]) == 0
+        said = capsys.readouterr().out
+        assert "not running" in said or "unknown" in said, said
+        outcome = runs.resume(out, progress=False)
+        assert outcome.status == "completed" and outcome.step == 40
+        assert _same(_weights(base.model), _weights(outcome.model)), f"kill near iteration {target}"
+        steps = [r["step"] for r in map(json.loads, (out / "metrics.jsonl").read_text().splitlines()) if "event" not in r]
+        assert steps == list(range(40)), steps  # no iteration logged twice, none missing
+        assert not (out / "shapes").exists()  # --no-results is remembered by the resume
+
+
+def test_metrics_cut_back_to_the_checkpoint_and_partial_line_dropped(tmp_path):
+    """A crash after the last checkpoint leaves log lines past it and a half-written last line;
+    ``ginn resume`` drops both (with a warning) and logs every iteration exactly once."""
+    spec, cfg = runs.resolve("obstacle", "demo", {"training": {"iterations": 12, "checkpoint_every": 5}}, sets=OBSTACLE)
+    out = tmp_path / "run"
+
+    def kill(trainer, step, values):
+        if step == 7:
+            raise _Kill
+
+    with pytest.raises(_Kill):
+        runs.train(spec, cfg, out, progress=False, results=False, hooks=[kill])
+    assert runs.resume(out, progress=False).step == 12
+    assert load_checkpoint(out / "checkpoints" / "last.pt")["step"] == 12
+    m = out / "metrics.jsonl"
+    with open(m, "a") as fh:  # as if iterations 12 and 13 had run after the checkpoint, then a crash
+        fh.write('{"step": 12, "total": 1.0}\n{"step": 13, "tot')
+    with pytest.warns(UserWarning, match="partial last line"):
+        outcome = runs.resume(out, iterations=15, progress=False, results=False)
+    assert outcome.step == 15
+    steps = [json.loads(line)["step"] for line in m.read_text().splitlines()]
+    assert steps == list(range(15))
+    assert truncate_metrics(m, 10) == 5 and len(m.read_text().splitlines()) == 10
+
+
+def test_status_is_truthful_through_failure_and_completion(tmp_path):
+    spec, cfg = runs.resolve("obstacle", "demo", {"training": {"iterations": 6}}, sets=OBSTACLE)
+    out = runs.train(spec, cfg, tmp_path / "ok", progress=False, results=False)
+    st = read_status(out.run_dir)
+    assert (st.status, st.step, st.pid) == ("completed", 6, None)
+    assert st.describe().startswith("completed at iteration 6")
+    # a run whose loss never becomes finite fails, and says why
+    bad = build_config(config_to_dict(cfg), {"training": {"lr": 1e30, "max_rollbacks": 0, "max_bad_steps": 1,
+                                                          "iterations": 50}})
+    with pytest.raises(Exception):
+        runs.train(spec, bad, tmp_path / "bad", progress=False, results=False)
+    st = read_status(tmp_path / "bad")
+    assert st.status == "failed" and "diverged" in st.reason
+
+
+def test_resume_without_a_checkpoint_restarts_from_the_config(tmp_path, capsys):
+    spec, cfg = runs.resolve("obstacle", "demo", {"training": {"iterations": 9, "checkpoint_every": 100}}, sets=OBSTACLE)
+    base = Trainer(make_task(spec, cfg), cfg, None, progress=False).train()
+    out = tmp_path / "run"
+    task = make_task(spec, cfg)
+
+    def hook(trainer, step, values):
+        if step == 4:
+            raise _Kill
+
+    from ginn.train.rundir import new_run_dir, write_run_files
+
+    write_run_files(new_run_dir("obstacle", out), cfg, Path(spec.source))
+    with pytest.raises(_Kill):
+        Trainer(task, cfg, out, progress=False, hooks=[hook]).train()
+    assert not (out / "checkpoints" / "last.pt").exists()
+    said = []
+    outcome = runs.resume(out, progress=False, results=False, say=said.append)
+    assert any("no checkpoint yet" in s for s in said)
+    assert _same(_weights(base.model), _weights(outcome.model))
+
+
+def test_a_running_run_is_not_resumed(tmp_path):
+    spec, cfg = runs.resolve("obstacle", "demo", {"training": {"iterations": 3}}, sets=OBSTACLE)
+    out = runs.train(spec, cfg, tmp_path / "run", progress=False, results=False).run_dir
+    from ginn.errors import GinnError
+    from ginn.train.rundir import write_status
+
+    write_status(out, "running", 2, 1.0)  # this very process: alive
+    with pytest.raises(GinnError, match="still running"):
+        runs.resume(out, iterations=5, progress=False)
+    shutil.rmtree(out / "checkpoints")
+
+
+@pytest.mark.slow
+def test_one_run_killed_ten_times_ends_like_the_uninterrupted_one(tmp_path):
+    """The same run killed with SIGKILL ten times at random iterations, each time continued by a
+    `ginn resume` process, ends with the uninterrupted run's weights (about 2 minutes)."""
+    sets = [*OBSTACLE, "training.iterations=120", "training.checkpoint_every=1000", "training.checkpoint_seconds=0.3"]
+    spec, cfg = runs.resolve("obstacle", "demo", {"output": {"results": False}}, sets=sets)
+    base = Trainer(make_task(spec, cfg), cfg, None, progress=False).train()
+    out = tmp_path / "run"
+    targets = sorted(random.Random(1).sample(range(5, 115), 10))
+    proc = _cli("obstacle", "--preset", "demo", out=out, sets=sets)
+    for target in targets:
+        while _poll_step(out / "metrics.jsonl") < target and proc.poll() is None:
+            time.sleep(0.02)
+        assert proc.poll() is None, proc.stderr.read()
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait()
+        proc = subprocess.Popen([sys.executable, "-m", "ginn", "resume", str(out), "--quiet"],
+                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    assert proc.wait() == 0, proc.stderr.read()
+    ck = load_checkpoint(out / "checkpoints" / "last.pt")
+    assert ck["step"] == 120
+    model = make_task(spec, cfg).build_model()
+    model.load_state_dict(ck["model"])
+    assert _same(_weights(base.model), _weights(model))
