@@ -168,3 +168,27 @@ def test_diversity_gradient_pushes_circles_apart():
     (-delta).backward()
     # gradient descent on -delta separates the two close circles
     assert z.grad[0, 0] > 0 and z.grad[1, 0] < 0
+
+
+@pytest.mark.parametrize("eps, masked", [(0.0, False), (0.0, True), (0.01, True)])
+def test_nearest_pair_diversity_equals_the_full_computation(eps, masked):
+    """The minimal aggregation evaluated with a graph only through the nearest pairs has the same
+    value and parameter gradient as the full S x S computation (float64), with ties of mutual
+    nearest neighbours counted once."""
+    from ginn.losses.diversity import diversity_nearest
+    from ginn.models import Siren
+
+    torch.manual_seed(0)
+    f = Siren(2, [32, 32], latent_dim=1, w0_first=3.0).double()
+    S, m = 7, 40
+    xb = torch.rand(S, m, 2, dtype=torch.float64) * 2 - 1
+    Z = torch.linspace(-1, 1, S, dtype=torch.float64)[:, None]
+    mask = (torch.rand(S, m) > 0.25) if masked else None
+    full = diversity(f, xb, Z, mask, "min", 0.5, eps)
+    near = diversity_nearest(f, xb, Z, mask, 0.5, eps)
+    assert float(near) == pytest.approx(float(full), rel=1e-13, abs=0)
+    g_full = torch.autograd.grad(full, list(f.parameters()))
+    g_near = torch.autograd.grad(near, list(f.parameters()))
+    for a, b in zip(g_full, g_near):
+        assert torch.allclose(a, b, rtol=1e-11, atol=1e-13)
+    assert float(diversity_nearest(f, xb[:1], Z[:1], None)) == 0.0  # one shape: no diversity

@@ -26,7 +26,7 @@ from ..extract.grid import check_grid_memory, make_grid
 from ..geometry import sampling
 from ..levelset import project_to_zero
 from ..losses import constraints as C
-from ..losses.diversity import aggregate, distance_matrix, diversity
+from ..losses.diversity import aggregate, distance_matrix, diversity, diversity_nearest
 from ..models.factory import build_model
 from ..models.latents import fixed_latents, latent_dim, random_latents
 from ..problems.problem import Problem
@@ -297,7 +297,8 @@ class ShapeTask(Task):
                 V, M = cross_values_sharded(model, xb, Z, mask, self.dist)
                 out["diversity"] = -aggregate(distance_matrix(V, M, dv.eps), dv.aggregation, dv.p)
             else:
-                out["diversity"] = -diversity(model, xb, Z, mask, kind=dv.aggregation, p=dv.p, eps=dv.eps)
+                out["diversity"] = -(diversity_nearest(model, xb, Z, mask, p=dv.p, eps=dv.eps) if dv.aggregation == "min"
+                                     else diversity(model, xb, Z, mask, kind=dv.aggregation, p=dv.p, eps=dv.eps))
         return out
 
     def _away_from_interfaces(self, x: Tensor, c: float) -> Tensor:

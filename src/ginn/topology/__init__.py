@@ -5,7 +5,7 @@ Front door for the trainer::
     loss_fn = make_connectedness_loss(problem.domain, problem.design_region, config.connectedness,
                                       device=device, dtype=dtype)
     l = loss_fn(model, Z)          # scalar tensor; loss_fn.last_info holds diagnostics
-    state = loss_fn.state_dict()   # tensors only; loss_fn.load_state_dict(state)
+    state = loss_fn.state_dict()   # tensors and numbers; load_state_dict(state) continues exactly
 
 See docs/connectedness.md.
 """

@@ -1,0 +1,231 @@
+"""Cost of one training iteration of the built-in presets, and where it goes.
+
+    python benchmarks/step_cost.py                                  # every preset below, 2 threads
+    python benchmarks/step_cost.py --presets obstacle:quick --shapes 4 16 64
+    python benchmarks/step_cost.py --presets obstacle:quick --shapes 16 64 --compare full-diversity
+    python benchmarks/step_cost.py --presets bracket:cpu --from-iteration 1200      # connectedness on
+    python benchmarks/step_cost.py --presets bracket:gpu --device cuda --steps 2 --blocks 2
+
+For each configuration it prints seconds per iteration (the median over ``--blocks`` blocks of
+``--steps`` iterations; configurations take turns block by block, so a drift of the machine's
+speed hits all of them alike) and the share of each part of a step (of all blocks together): sampling, the main pass,
+the zero-level-set projection, curvature and strain, diversity, connectedness, and the backward
+pass with the optimiser step. ``--shapes`` overrides the number of shapes of generative shape
+presets and prints the scaling exponent of the step cost (``t ~ S^a`` between the first and the
+last count). ``--compare full-diversity`` runs every configuration twice, with the exact
+nearest-pair diversity (ginn's) and with the full ``S x S`` computation, and prints their ratio.
+``--memory`` measures peak memory in a fresh process per configuration (max RSS on the CPU,
+``torch.cuda.max_memory_allocated`` on a GPU).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import math
+import resource
+import statistics
+import subprocess
+import sys
+import time
+from collections import defaultdict
+from contextlib import contextmanager
+
+import torch
+
+from ginn import runs
+from ginn.tasks import make_task
+from ginn.tasks.shape import ShapeTask
+from ginn.train.trainer import Trainer
+
+shape_module = importlib.import_module("ginn.tasks.shape")
+diversity_module = importlib.import_module("ginn.losses.diversity")
+
+PRESETS = ["obstacle:demo", "obstacle:quick", "bracket:cpu", "bracket:cpu-gen", "plateau:cpu", "mirror:", "gray-scott:quick"]
+PARTS = ["sampling", "main pass", "projection", "curvature/strain", "diversity", "connectedness", "backward+step"]
+
+
+class Clock:
+    """Accumulates wall time per part while a step runs."""
+
+    def __init__(self):
+        self.t = defaultdict(float)
+
+    @contextmanager
+    def part(self, name: str):
+        t0 = time.perf_counter()
+        try:
+            yield
+        finally:
+            self.t[name] += time.perf_counter() - t0
+
+    def wrap(self, obj, attr: str, name: str):
+        fn = getattr(obj, attr)
+
+        def timed(*a, **kw):
+            with self.part(name):
+                return fn(*a, **kw)
+
+        setattr(obj, attr, timed)
+
+
+def _full_diversity(field, xb, Z, mask, p, eps):
+    return diversity_module.diversity(field, xb, Z, mask, "min", p, eps)
+
+
+class _Timed:
+    """A callable object (a connectedness loss) whose calls are timed; everything else delegates."""
+
+    def __init__(self, inner, clock: Clock, name: str):
+        self._inner, self._clock, self._name = inner, clock, name
+
+    def __call__(self, *a, **kw):
+        with self._clock.part(self._name):
+            return self._inner(*a, **kw)
+
+    def __getattr__(self, attr):
+        return getattr(self._inner, attr)
+
+
+def build(preset: str, shapes: int | None, device: str, threads: int, from_iteration: int = 0):
+    problem, _, name = preset.partition(":")
+    over: dict = {"device": device, "training": {"threads": threads}}
+    if shapes is not None:
+        over["latents"] = {"n_shapes": shapes}
+    spec, cfg = runs.resolve(problem, name or None, over)
+    task = make_task(spec, cfg)
+    trainer = Trainer(task, cfg, None, progress=False)
+    trainer.step = from_iteration  # the terms active from there on (e.g. connectedness), on the untrained field
+    clock = Clock()
+    if isinstance(task, ShapeTask):
+        clock.wrap(task, "sample", "sampling")
+        clock.wrap(task, "boundary_points", "projection")
+        clock.wrap(task, "_boundary_losses", "curvature/strain")  # diversity is subtracted below
+        if "connectedness" in trainer.active_terms(10**9):
+            task._conn = _Timed(task.connectedness_loss(), clock, "connectedness")
+    clock.wrap(task, "loss_terms", "loss")
+    return trainer, clock
+
+
+def run_block(trainer: Trainer, clock: Clock, steps: int, full_diversity: bool) -> dict:
+    """``steps`` iterations; returns the seconds per iteration of each part."""
+    div_fn = diversity_module.diversity_nearest
+    inner = Clock()
+
+    def timed_div(*a, **kw):
+        with inner.part("diversity"):
+            return (_full_diversity if full_diversity else div_fn)(*a, **kw)
+
+    shape_module.diversity_nearest = timed_div
+    clock.t.clear()
+    t0 = time.perf_counter()
+    try:
+        for _ in range(steps):
+            trainer.train_step()
+            if trainer.device.type == "cuda":
+                torch.cuda.synchronize()
+    finally:
+        shape_module.diversity_nearest = div_fn
+    total = time.perf_counter() - t0
+    t = dict(clock.t)
+    out = {"total": total / steps, "diversity": inner.t["diversity"] / steps}
+    out["curvature/strain"] = (t.get("curvature/strain", 0.0) - inner.t["diversity"]) / steps
+    for k in ("sampling", "projection", "connectedness"):
+        out[k] = t.get(k, 0.0) / steps
+    loss = t.get("loss", 0.0) / steps
+    out["main pass"] = loss - sum(out[k] for k in ("sampling", "projection", "connectedness", "curvature/strain", "diversity"))
+    out["backward+step"] = out["total"] - loss
+    return out
+
+
+def peak_rss() -> float:
+    """This process's peak resident memory in GiB: ``VmHWM`` (Linux; reset by exec, unlike
+    ``ru_maxrss``, which a child inherits from the parent), else ``ru_maxrss``."""
+    try:
+        for line in open("/proc/self/status"):
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) / 2**20
+    except OSError:
+        pass
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20
+
+
+def peak_memory(args, preset: str, shapes: int | None, full: bool) -> float:
+    """Peak memory (GiB) of a fresh process training this configuration for ``--steps`` iterations."""
+    code = (
+        "import sys, resource, torch, json; sys.argv = ['step_cost']; import importlib.util as u;"
+        f"spec = u.spec_from_file_location('sc', {__file__!r}); m = u.module_from_spec(spec); spec.loader.exec_module(m);"
+        f"tr, ck = m.build({preset!r}, {shapes!r}, {args.device!r}, {args.threads}, {args.from_iteration});"
+        f"m.run_block(tr, ck, {args.steps}, {full});"
+        "cuda = torch.cuda.is_available() and tr.device.type == 'cuda';"
+        "print(json.dumps(torch.cuda.max_memory_allocated() / 2**30 if cuda else m.peak_rss()))"
+    )
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    if r.returncode != 0:
+        raise SystemExit(r.stderr)
+    return float(r.stdout.strip().splitlines()[-1])
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--presets", nargs="+", default=PRESETS, help="problem:preset (mirror: for the defaults)")
+    p.add_argument("--shapes", nargs="+", type=int, help="numbers of shapes for generative shape presets")
+    p.add_argument("--steps", type=int, default=5, help="iterations per block (5: a whole connectedness rebuild cycle of the CPU presets)")
+    p.add_argument("--blocks", type=int, default=4, help="blocks per configuration (taken in turns)")
+    p.add_argument("--warmup", type=int, default=2, help="iterations before timing")
+    p.add_argument("--threads", type=int, default=2, help="torch threads")
+    p.add_argument("--device", default="cpu")
+    p.add_argument("--compare", choices=["none", "full-diversity"], default="none")
+    p.add_argument("--memory", action="store_true", help="also measure peak memory (a fresh process each)")
+    p.add_argument("--from-iteration", type=int, default=0,
+                   help="time the iterations from this one on (the loss terms active there; the field is untrained)")
+    args = p.parse_args(argv)
+    torch.set_num_threads(args.threads)
+
+    configs = []
+    for preset in args.presets:
+        counts = args.shapes if args.shapes and not preset.startswith(("mirror", "gray-scott", "plateau")) else [None]
+        for s in counts:
+            for full in ([False, True] if args.compare == "full-diversity" else [False]):
+                configs.append((preset, s, full))
+    built = {}
+    for c in configs:
+        tr, ck = build(c[0], c[1], args.device, args.threads, args.from_iteration)
+        run_block(tr, ck, args.warmup, c[2])
+        built[c] = (tr, ck)
+    results: dict = {c: [] for c in configs}
+    for _ in range(args.blocks):
+        for c in configs:
+            results[c].append(run_block(*built[c], args.steps, c[2]))
+
+    print(f"# {args.device}, {args.threads} thread(s); median of {args.blocks} interleaved blocks of {args.steps} iterations")
+    print("| preset | shapes | diversity | s / iteration | " + " | ".join(PARTS) + (" | peak memory (GiB) |" if args.memory else " |"))
+    print("|" + "---|" * (4 + len(PARTS) + (1 if args.memory else 0)))
+    med = {}
+    for c in configs:
+        rows = results[c]
+        med[c] = statistics.median(r["total"] for r in rows)
+        whole = sum(r["total"] for r in rows)  # shares: of all the blocks' time together
+        shares = [f"{100 * max(sum(r[k] for r in rows), 0.0) / whole:.0f} %" for k in PARTS]
+        mem = f" {peak_memory(args, c[0], c[1], c[2]):.2f} |" if args.memory else ""
+        n = c[1] if c[1] is not None else built[c][0].cfg.latents.n_shapes
+        print(f"| {c[0]} | {n} | {'full S x S' if c[2] else 'nearest pairs'} | {med[c]:.3f} | " + " | ".join(shares) + f" |{mem}")
+    if args.compare == "full-diversity":
+        for preset, s, full in configs:
+            if not full:
+                print(f"{preset} S={s}: nearest / full = {med[(preset, s, False)] / med[(preset, s, True)]:.2f}")
+    if args.shapes and len(args.shapes) > 1:
+        lo, hi = args.shapes[0], args.shapes[-1]
+        for preset in args.presets:
+            for full in ([False, True] if args.compare == "full-diversity" else [False]):
+                a, b = med.get((preset, lo, full)), med.get((preset, hi, full))
+                if a and b:
+                    print(f"{preset} ({'full' if full else 'nearest'}): {lo} -> {hi} shapes costs x{b / a:.2f}, "
+                          f"exponent {math.log(b / a) / math.log(hi / lo):.2f}")
+    print(json.dumps({f"{c[0]}|{c[1]}|{c[2]}": med[c] for c in configs}))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
