@@ -214,3 +214,20 @@ def test_sigterm_writes_checkpoint_and_exits_cleanly(tmp_path):
     assert "status interrupted" in out
     ck = load_checkpoint(run / "checkpoints" / "last.pt")
     assert ck["step"] >= 21
+
+
+def test_plain_progress_for_a_log_file():
+    """Outside a terminal, progress is one plain line per tenth of the run (no carriage returns)."""
+    import io
+
+    from ginn.train.trainer import PlainProgress
+
+    out = io.StringIO()
+    p = PlainProgress(100, initial=0, seconds=1e9, stream=out)
+    for i in range(100):
+        p.set_postfix({"total": f"{1.0 / (i + 1):.2e}"})
+        p.update(1)
+    lines = out.getvalue().splitlines()
+    assert len(lines) == 10 and "\r" not in out.getvalue()
+    assert lines[0].startswith("iteration 10/100 (10 %") and lines[-1].startswith("iteration 100/100 (100 %")
+    assert lines[-1].endswith("total 1.00e-02")

@@ -23,6 +23,7 @@ from __future__ import annotations
 import json
 import math
 import signal
+import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -71,6 +72,35 @@ class TrainResult:
     seconds: float
     last_losses: dict[str, float]
     reason: str = ""
+
+
+class PlainProgress:
+    """Progress for a log file (stderr not a terminal): one plain line every tenth of the run or
+    every ``seconds``, whichever comes first, instead of a redrawn bar. The same calls as tqdm's
+    that the trainer makes (``update``, ``set_postfix``, ``close``)."""
+
+    def __init__(self, total: int, initial: int = 0, seconds: float = 60.0, stream=None):
+        self.total, self.n, self.seconds = total, initial, seconds
+        self.stream = stream if stream is not None else sys.stderr
+        self.every = max(1, total // 10)
+        self.t0 = self.last = time.monotonic()
+        self.postfix: dict = {}
+
+    def update(self, k: int = 1) -> None:
+        self.n += k
+        now = time.monotonic()
+        if self.n % self.every == 0 or self.n == self.total or now - self.last >= self.seconds:
+            self.last = now
+            terms = ", ".join(f"{k} {v}" for k, v in self.postfix.items())
+            self.stream.write(f"iteration {self.n}/{self.total} ({100 * self.n / max(self.total, 1):.0f} %, "
+                              f"{now - self.t0:.0f} s)" + (f": {terms}" if terms else "") + "\n")
+            self.stream.flush()
+
+    def set_postfix(self, values: dict, refresh: bool = False) -> None:
+        self.postfix = dict(values)
+
+    def close(self) -> None:
+        pass
 
 
 class _StopFlag:
@@ -338,9 +368,12 @@ class Trainer:
         total_iters = t.iterations
         bar = None
         if self.progress and self.step < total_iters:
-            from tqdm import tqdm
+            if sys.stderr.isatty():
+                from tqdm import tqdm
 
-            bar = tqdm(total=total_iters, initial=self.step, dynamic_ncols=True, unit="it", leave=True)
+                bar = tqdm(total=total_iters, initial=self.step, dynamic_ncols=True, unit="it", leave=True)
+            else:
+                bar = PlainProgress(total_iters, self.step)
         last: dict[str, float] = {}
         status = "completed"
         t0 = time.perf_counter() - self.elapsed
