@@ -205,10 +205,14 @@ def resume(
         GinnError: the run is still running, or ``iterations`` is not beyond its current step.
     """
     run_dir = Path(run_dir)
-    state = read_status(run_dir)
-    if state.alive():
-        raise GinnError(f"{run_dir}: the run is still {state.describe()}; stop it before resuming")
-    if state.status == "running":
+    def not_running():
+        state = read_status(run_dir)
+        if state.alive():
+            raise GinnError(f"{run_dir}: the run is still {state.describe()}; stop it before resuming")
+        return state
+
+    state = on_main(dist, not_running)  # decided once, on rank 0 (the others would see its new status)
+    if state.status == "running" and (dist is None or dist.is_main):
         say(f"{run_dir} was {state.describe().split(';')[0]}")
     spec, cfg = _run_config(run_dir)
     if iterations is not None:
