@@ -4,6 +4,8 @@
     python benchmarks/step_cost.py --presets obstacle:quick --shapes 4 16 64
     python benchmarks/step_cost.py --presets obstacle:quick --shapes 16 64 --compare full-diversity
     python benchmarks/step_cost.py --presets bracket:cpu --from-iteration 1200      # connectedness on
+    python benchmarks/step_cost.py --presets bracket:cpu --from-iteration 1200 --compare direct-membership
+    python benchmarks/step_cost.py --presets bracket:cpu --checkpoint RUN/checkpoints/last.pt --compare direct-membership
     python benchmarks/step_cost.py --presets bracket:gpu --device cuda --steps 2 --blocks 2
 
 For each configuration it prints seconds per iteration (the median over ``--blocks`` blocks of
@@ -13,7 +15,9 @@ the zero-level-set projection, curvature and strain, diversity, connectedness, a
 pass with the optimiser step. ``--shapes`` overrides the number of shapes of generative shape
 presets and prints the scaling exponent of the step cost (``t ~ S^a`` between the first and the
 last count). ``--compare full-diversity`` runs every configuration twice, with the exact
-nearest-pair diversity (ginn's) and with the full ``S x S`` computation, and prints their ratio.
+nearest-pair diversity (ginn's) and with the full ``S x S`` computation, and prints their ratio;
+``--compare direct-membership`` does the same with the connectedness loss asking the design region
+itself about every path point instead of its exact grid lookup (``ginn.geometry.lookup``).
 ``--memory`` measures peak memory in a fresh process per configuration (max RSS on the CPU,
 ``torch.cuda.max_memory_allocated`` on a GPU).
 """
@@ -37,6 +41,7 @@ import torch
 from ginn import runs
 from ginn.tasks import make_task
 from ginn.tasks.shape import ShapeTask
+from ginn.train.checkpoint import load_checkpoint
 from ginn.train.trainer import Trainer
 
 shape_module = importlib.import_module("ginn.tasks.shape")
@@ -88,7 +93,8 @@ class _Timed:
         return getattr(self._inner, attr)
 
 
-def build(preset: str, shapes: int | None, device: str, threads: int, from_iteration: int = 0):
+def build(preset: str, shapes: int | None, device: str, threads: int, from_iteration: int = 0,
+          direct_membership: bool = False, checkpoint: str | None = None):
     problem, _, name = preset.partition(":")
     over: dict = {"device": device, "training": {"threads": threads}}
     if shapes is not None:
@@ -97,13 +103,18 @@ def build(preset: str, shapes: int | None, device: str, threads: int, from_itera
     task = make_task(spec, cfg)
     trainer = Trainer(task, cfg, None, progress=False)
     trainer.step = from_iteration  # the terms active from there on (e.g. connectedness), on the untrained field
+    if checkpoint is not None:  # a trained field instead (a run of the same preset)
+        trainer.load_state_dict(load_checkpoint(checkpoint, map_location=trainer.device))
     clock = Clock()
     if isinstance(task, ShapeTask):
         clock.wrap(task, "sample", "sampling")
         clock.wrap(task, "boundary_points", "projection")
         clock.wrap(task, "_boundary_losses", "curvature/strain")  # diversity is subtracted below
         if "connectedness" in trainer.active_terms(10**9):
-            task._conn = _Timed(task.connectedness_loss(), clock, "connectedness")
+            loss = task.connectedness_loss()
+            if direct_membership and hasattr(loss, "_membership"):
+                loss._membership = loss.region
+            task._conn = _Timed(loss, clock, "connectedness")
     clock.wrap(task, "loss_terms", "loss")
     return trainer, clock
 
@@ -156,8 +167,9 @@ def peak_memory(args, preset: str, shapes: int | None, full: bool) -> float:
     code = (
         "import sys, resource, torch, json; sys.argv = ['step_cost']; import importlib.util as u;"
         f"spec = u.spec_from_file_location('sc', {__file__!r}); m = u.module_from_spec(spec); spec.loader.exec_module(m);"
-        f"tr, ck = m.build({preset!r}, {shapes!r}, {args.device!r}, {args.threads}, {args.from_iteration});"
-        f"m.run_block(tr, ck, {args.steps}, {full});"
+        f"tr, ck = m.build({preset!r}, {shapes!r}, {args.device!r}, {args.threads}, {args.from_iteration},"
+        f" {full and args.compare == 'direct-membership'}, {args.checkpoint!r});"
+        f"m.run_block(tr, ck, {args.steps}, {full and args.compare == 'full-diversity'});"
         "cuda = torch.cuda.is_available() and tr.device.type == 'cuda';"
         "print(json.dumps(torch.cuda.max_memory_allocated() / 2**30 if cuda else m.peak_rss()))"
     )
@@ -176,10 +188,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--warmup", type=int, default=2, help="iterations before timing")
     p.add_argument("--threads", type=int, default=2, help="torch threads")
     p.add_argument("--device", default="cpu")
-    p.add_argument("--compare", choices=["none", "full-diversity"], default="none")
+    p.add_argument("--compare", choices=["none", "full-diversity", "direct-membership"], default="none",
+                   help="also time each configuration with this baseline and print the ratio")
     p.add_argument("--memory", action="store_true", help="also measure peak memory (a fresh process each)")
     p.add_argument("--from-iteration", type=int, default=0,
                    help="time the iterations from this one on (the loss terms active there; the field is untrained)")
+    p.add_argument("--checkpoint", help="start from this checkpoint of a run of the (one) preset: a trained field")
     args = p.parse_args(argv)
     torch.set_num_threads(args.threads)
 
@@ -187,20 +201,22 @@ def main(argv: list[str] | None = None) -> int:
     for preset in args.presets:
         counts = args.shapes if args.shapes and not preset.startswith(("mirror", "gray-scott", "plateau")) else [None]
         for s in counts:
-            for full in ([False, True] if args.compare == "full-diversity" else [False]):
+            for full in ([False, True] if args.compare != "none" else [False]):
                 configs.append((preset, s, full))
+    full_div = args.compare == "full-diversity"
     built = {}
     for c in configs:
-        tr, ck = build(c[0], c[1], args.device, args.threads, args.from_iteration)
-        run_block(tr, ck, args.warmup, c[2])
+        tr, ck = build(c[0], c[1], args.device, args.threads, args.from_iteration,
+                       c[2] and args.compare == "direct-membership", args.checkpoint)
+        run_block(tr, ck, args.warmup, c[2] and full_div)
         built[c] = (tr, ck)
     results: dict = {c: [] for c in configs}
     for _ in range(args.blocks):
         for c in configs:
-            results[c].append(run_block(*built[c], args.steps, c[2]))
+            results[c].append(run_block(*built[c], args.steps, c[2] and full_div))
 
     print(f"# {args.device}, {args.threads} thread(s); median of {args.blocks} interleaved blocks of {args.steps} iterations")
-    print("| preset | shapes | diversity | s / iteration | " + " | ".join(PARTS) + (" | peak memory (GiB) |" if args.memory else " |"))
+    print("| preset | shapes | variant | s / iteration | " + " | ".join(PARTS) + (" | peak memory (GiB) |" if args.memory else " |"))
     print("|" + "---|" * (4 + len(PARTS) + (1 if args.memory else 0)))
     med = {}
     for c in configs:
@@ -210,18 +226,18 @@ def main(argv: list[str] | None = None) -> int:
         shares = [f"{100 * max(sum(r[k] for r in rows), 0.0) / whole:.0f} %" for k in PARTS]
         mem = f" {peak_memory(args, c[0], c[1], c[2]):.2f} |" if args.memory else ""
         n = c[1] if c[1] is not None else built[c][0].cfg.latents.n_shapes
-        print(f"| {c[0]} | {n} | {'full S x S' if c[2] else 'nearest pairs'} | {med[c]:.3f} | " + " | ".join(shares) + f" |{mem}")
-    if args.compare == "full-diversity":
+        print(f"| {c[0]} | {n} | {args.compare if c[2] else 'ginn'} | {med[c]:.3f} | " + " | ".join(shares) + f" |{mem}")
+    if args.compare != "none":
         for preset, s, full in configs:
             if not full:
-                print(f"{preset} S={s}: nearest / full = {med[(preset, s, False)] / med[(preset, s, True)]:.2f}")
+                print(f"{preset} S={s}: ginn / {args.compare} = {med[(preset, s, False)] / med[(preset, s, True)]:.2f}")
     if args.shapes and len(args.shapes) > 1:
         lo, hi = args.shapes[0], args.shapes[-1]
         for preset in args.presets:
-            for full in ([False, True] if args.compare == "full-diversity" else [False]):
+            for full in ([False, True] if args.compare != "none" else [False]):
                 a, b = med.get((preset, lo, full)), med.get((preset, hi, full))
                 if a and b:
-                    print(f"{preset} ({'full' if full else 'nearest'}): {lo} -> {hi} shapes costs x{b / a:.2f}, "
+                    print(f"{preset} ({args.compare if full else 'ginn'}): {lo} -> {hi} shapes costs x{b / a:.2f}, "
                           f"exponent {math.log(b / a) / math.log(hi / lo):.2f}")
     print(json.dumps({f"{c[0]}|{c[1]}|{c[2]}": med[c] for c in configs}))
     return 0

@@ -541,3 +541,41 @@ def test_margin_sees_a_thin_neck_as_a_gap():
     assert loss.item() == pytest.approx(f0 + 0.05, abs=1e-10)
     loss.backward()
     assert float(shift.grad) == pytest.approx(1.0)
+
+
+def test_region_lookup_answers_exactly_like_the_region():
+    """The grid lookup of a CSG region (1-Lipschitz SDF) gives region.contains for every point,
+    including points within a grid cell of the boundary and outside the grid's box."""
+    from ginn.geometry import Difference, Disk, Polygon, Rectangle, Transformed, rotation_matrix
+    from ginn.geometry.lookup import RegionLookup, fast_membership
+
+    region = Difference(Rectangle((-0.8, -0.6), (0.8, 0.6)), Disk((0.2, 0.1), 0.3),
+                        Transformed(Polygon([(0.0, 0.0), (0.3, 0.0), (0.15, 0.25)]), rotation_matrix(2, 30), (-0.5, -0.3)))
+    assert region.lipschitz
+    look = RegionLookup(region, BOX2, cells=32)
+    g = torch.Generator().manual_seed(0)
+    x = torch.rand(20000, 2, generator=g, dtype=DT) * 2.4 - 1.2  # beyond the box too
+    # and points close to the boundary: on the disk's circle, pushed by less than a cell
+    th = torch.rand(5000, generator=g, dtype=DT) * 2 * torch.pi
+    near = torch.stack([0.2 + 0.3 * th.cos(), 0.1 + 0.3 * th.sin()], -1) + (torch.rand(5000, 2, generator=g, dtype=DT) - 0.5) * 0.02
+    for pts in (x, near):
+        assert torch.equal(look.contains(pts), region.contains(pts))
+    assert fast_membership(_WithoutDisk(0.15), BOX2).__class__ is _WithoutDisk  # not Lipschitz: unchanged
+
+
+def test_surface_network_is_the_same_with_the_region_lookup():
+    """Tracing with the grid lookup of the design region gives the very same network (paths,
+    lengths, anchors) as tracing with the region itself."""
+    from ginn.geometry import Difference, Disk, Rectangle
+    from ginn.geometry.lookup import RegionLookup
+
+    f = blobs([[-0.7, 0.0], [0.0, 0.1], [0.8, 0.0]], 0.2)
+    region = Difference(Rectangle((-0.95, -0.5), (0.95, 0.5)), Disk((0.4, -0.3), 0.12))
+    cp = find_critical_points(f, None, BOX2, 16, options=TIGHT.critical, dtype=DT)
+    a = trace_surface_network(f, None, BOX2, cp, 16, region=region)
+    b = trace_surface_network(f, None, BOX2, cp, 16, region=RegionLookup(region, BOX2, cells=24))
+    for k in ("path_start", "path_end", "path_descending", "path_length", "path_outside_length", "ends"):
+        np.testing.assert_array_equal(getattr(a, k), getattr(b, k))
+    np.testing.assert_array_equal(np.isnan(a.path_anchor), np.isnan(b.path_anchor))
+    np.testing.assert_array_equal(np.nan_to_num(a.path_anchor), np.nan_to_num(b.path_anchor))
+    assert np.isfinite(a.path_anchor).any()

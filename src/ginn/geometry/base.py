@@ -15,9 +15,15 @@ from torch import Tensor
 
 
 class Region(abc.ABC):
-    """A solid region of R^d described by a signed distance function (exact or approximate)."""
+    """A solid region of R^d described by a signed distance function (exact or approximate).
+
+    ``lipschitz`` is True when ``sdf`` has the exact sign and is 1-Lipschitz (an exact SDF, or a
+    min/max of such, moved rigidly): then ``sdf(y)`` cannot change sign within ``|sdf(y)|`` of
+    ``y``, which :class:`ginn.geometry.lookup.RegionLookup` uses to answer membership from a grid.
+    """
 
     dim: int
+    lipschitz: bool = False
 
     @abc.abstractmethod
     def sdf(self, x: Tensor) -> Tensor:

@@ -34,6 +34,7 @@ class Union(Region):
     def __init__(self, *children: Region):
         self.children = tuple(children)
         self.dim = _dim_of(self.children)
+        self.lipschitz = all(c.lipschitz for c in self.children)  # a min of 1-Lipschitz functions is one
 
     def sdf(self, x: Tensor) -> Tensor:
         return torch.stack([c.sdf(x) for c in self.children], dim=-1).min(dim=-1).values
@@ -57,6 +58,7 @@ class Intersection(Region):
     def __init__(self, *children: Region):
         self.children = tuple(children)
         self.dim = _dim_of(self.children)
+        self.lipschitz = all(c.lipschitz for c in self.children)
 
     def sdf(self, x: Tensor) -> Tensor:
         return torch.stack([c.sdf(x) for c in self.children], dim=-1).max(dim=-1).values
@@ -82,6 +84,7 @@ class Difference(Region):
         self.base = base
         self.removed = tuple(removed)
         self.dim = _dim_of((base, *self.removed))
+        self.lipschitz = base.lipschitz and all(r.lipschitz for r in self.removed)
 
     def sdf(self, x: Tensor) -> Tensor:
         out = self.base.sdf(x)
@@ -141,6 +144,7 @@ class Transformed(Region):
     def __init__(self, region: Region, rotation=None, translation=None):
         self.region = region
         self.dim = region.dim
+        self.lipschitz = region.lipschitz  # a rigid motion keeps distances
         d = self.dim
         self.rotation = torch.eye(d, dtype=torch.float64) if rotation is None else check_rotation(rotation)
         self.translation = torch.zeros(d, dtype=torch.float64) if translation is None else as_f64(translation, "translation", (d,))

@@ -28,6 +28,8 @@ class AABox(Region):
         lo, hi: corners, length ``d`` each, ``lo < hi`` componentwise.
     """
 
+    lipschitz = True  # an exact signed distance
+
     def __init__(self, lo, hi):
         self.lo = as_f64(lo, "lo")
         self.hi = as_f64(hi, "hi", tuple(self.lo.shape))
@@ -68,6 +70,8 @@ class Cuboid(AABox):
 class Ball(Region):
     """Ball ``|x - center| <= radius`` in any dimension."""
 
+    lipschitz = True  # an exact signed distance
+
     def __init__(self, center, radius: float):
         self.center = as_f64(center, "center")
         self.radius = float(radius)
@@ -107,6 +111,8 @@ class Sphere(Ball):
 class HalfSpace(Region):
     """Half-space ``(x - point) . normal <= 0``; ``normal`` is the outward normal (normalised here)."""
 
+    lipschitz = True  # an exact signed distance
+
     def __init__(self, point, normal):
         self.point = as_f64(point, "point")
         self.normal = unit(normal, "normal")
@@ -132,6 +138,8 @@ class Polygon(Region):
 
     The SDF is exact: the distance to the nearest edge, negative inside (even-odd rule).
     """
+
+    lipschitz = True  # an exact signed distance
 
     def __init__(self, vertices):
         v = as_f64(vertices, "vertices")
@@ -179,6 +187,8 @@ class Cylinder(Region):
         length: total length along the axis, > 0.
     """
 
+    lipschitz = True  # an exact signed distance
+
     def __init__(self, center, axis, radius: float, length: float):
         self.center = as_f64(center, "center", (3,))
         self.axis = unit(axis, "axis")
@@ -212,6 +222,8 @@ class Extrusion(Region):
 
     Use :class:`~ginn.geometry.csg.Transformed` for other directions.
     """
+
+    lipschitz = True  # an exact signed distance
 
     def __init__(self, polygon: Polygon | object, z0: float, z1: float):
         self.polygon = polygon if isinstance(polygon, Polygon) else Polygon(polygon)

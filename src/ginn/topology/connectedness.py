@@ -55,6 +55,7 @@ from torch import Tensor
 
 from ..extract.grid import label_components
 from ..geometry.base import Box, Region
+from ..geometry.lookup import fast_membership
 from .base import ConnectednessLossBase
 from .components import field_on_grid
 from .critical import (
@@ -352,6 +353,9 @@ class ConnectednessLoss(ConnectednessLossBase):
         options: SurfaceNetworkLossOptions | None = None,
     ):
         super().__init__(domain, design_region, config, device, dtype)
+        # the region is asked about every point of every path at every tracing step: answered
+        # from a grid of its SDF where that is exact (geometry.lookup), by the region elsewhere
+        self._membership = fast_membership(self.region, domain, device=self.device)
         self.options = options or SurfaceNetworkLossOptions()
         self.generator = torch.Generator().manual_seed(self.options.seed)
         self.step = 0
@@ -424,7 +428,7 @@ class ConnectednessLoss(ConnectednessLossBase):
     def _valid(self, pts: CriticalPoints) -> np.ndarray:
         if self.region is None or pts.m == 0:
             return np.ones(pts.m, dtype=bool)
-        return self.region.contains(pts.x).cpu().numpy().astype(bool)
+        return self._membership.contains(pts.x).cpu().numpy().astype(bool)
 
     def _full_build(self, field, Z: Tensor | None) -> None:
         prev = self.points
@@ -437,7 +441,7 @@ class ConnectednessLoss(ConnectednessLossBase):
             field, Z, self.domain, self.config.grid, prev, self.options.critical, self.generator, self.device, self.dtype
         )
         self.network = trace_surface_network(
-            field, Z, self.domain, pts, self.config.grid, self.options.paths, region=self.region
+            field, Z, self.domain, pts, self.config.grid, self.options.paths, region=self._membership
         )
         self.points = pts
         self.last_full = self.step

@@ -201,7 +201,7 @@ def trace_surface_network(
     prev_pos = points.x[start_vertex].clone()
     alive = torch.ones(P, dtype=torch.bool, device=dev)
     anchor = torch.full((P, d), float("nan"), device=dev, dtype=dt)
-    s_in = (f0 <= 0) & _in_region(region, prev_pos)
+    s_in = _inside(f0 <= 0, region, prev_pos)
     anchor[s_in] = prev_pos[s_in]
     # the first segment (saddle -> start point)
     seg = (pos - prev_pos).norm(dim=-1)
@@ -220,7 +220,7 @@ def trace_surface_network(
         length[idx] += seg[idx]
         out_len[idx] += seg[idx] * frac_out
         f_prev[idx] = f
-        now_in = (f <= 0) & ((p >= lo) & (p <= hi)).all(-1) & _in_region(region, p)
+        now_in = _inside((f <= 0) & ((p >= lo) & (p <= hi)).all(-1), region, p)
         anchor[idx[now_in]] = p[now_in]
         # capture
         dist = (p[:, None, :] - Xv[shape[idx]]).norm(dim=-1)  # (n, M)
@@ -272,7 +272,10 @@ def _fraction_positive(fa: Tensor, fb: Tensor) -> Tensor:
     return torch.where(both, torch.ones_like(fa), torch.where(none, torch.zeros_like(fa), mixed))
 
 
-def _in_region(region: Region | None, x: Tensor) -> Tensor:
-    if region is None:
-        return torch.ones(x.shape[0], dtype=torch.bool, device=x.device)
-    return region.contains(x).to(x.device)
+def _inside(candidate: Tensor, region: Region | None, x: Tensor) -> Tensor:
+    """``candidate`` narrowed to the points of ``x (n, d)`` inside ``region`` (only candidates are asked)."""
+    if region is None or not bool(candidate.any()):
+        return candidate
+    out = candidate.clone()
+    out[candidate] = region.contains(x[candidate]).to(x.device)
+    return out
