@@ -58,6 +58,9 @@ CASES = {
     "duplicate spec key": (lambda r, t: (t / "dup.yaml").write_text(
         "name: a\nname: b\ngeometry: {dim: 2, domain: {lo: [0, 0], hi: [1, 1]}}\n") and ["train", t / "dup.yaml"],
         "duplicate key 'name'"),
+    "negative tolerance": (lambda r, t: (t / "tol.yaml").write_text(
+        "name: a\ngeometry: {dim: 2, domain: {lo: [0, 0], hi: [1, 1]}}\ntolerances: {interface: -1}\n")
+        and ["train", t / "tol.yaml"], "tolerances.interface"),
     "export --latent nan": (lambda r, t: ["export", r, "--latent", "nan"], "--latent"),
     "2D export --format stl": (lambda r, t: ["export", r, "--format", "stl"], "--format stl"),
     "--iterations 0": (lambda r, t: ["train", "obstacle", "--iterations", "0"], "--iterations"),

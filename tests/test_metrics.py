@@ -193,7 +193,8 @@ def test_diversity_mean_function_and_single_shape():
 def test_tables():
     r = evaluate_shapes(as_field(Disk((0.0, 0.0), 0.4).sdf), None, problem(interfaces=(Circle(0.4),)), 64)
     t = format_table(r)
-    assert "CD1" in t and t.count("\n") == 3 + len(METRIC_NAMES) + 1
+    assert "CD1" in t and t.count("\n") == 3 + len(METRIC_NAMES) + 1 + 2
+    assert t.splitlines()[-1] == "feasible shapes: 1 of 1"  # the disk through its own interface
     c = format_comparison_table([r, r], ["a", "b"])
     assert c.splitlines()[0] == "| metric | a | b |"
     assert len(c.splitlines()) == 3 + len(METRIC_NAMES) + 1

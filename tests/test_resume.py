@@ -159,9 +159,13 @@ def test_metrics_cut_back_to_the_checkpoint_and_partial_line_dropped(tmp_path):
     with pytest.warns(UserWarning, match="partial last line"):
         outcome = runs.resume(out, iterations=15, progress=False, results=False)
     assert outcome.step == 15
-    steps = [json.loads(line)["step"] for line in m.read_text().splitlines()]
-    assert steps == list(range(15))
-    assert truncate_metrics(m, 10) == 5 and len(m.read_text().splitlines()) == 10
+    records = [json.loads(line) for line in m.read_text().splitlines()]
+    assert [r["step"] for r in records if "event" not in r] == list(range(15))
+    checks = [r["step"] for r in records if r.get("event") == "feasibility"]
+    assert checks == sorted(set(checks)) and checks[-1] == 15  # each check once, the last at the end
+    # iteration records from index 10 on go, events from 11 completed iterations on
+    assert truncate_metrics(m, 10) == sum(r["step"] >= 10 + ("event" in r) for r in records)
+    assert [r["step"] for r in map(json.loads, m.read_text().splitlines()) if "event" not in r] == list(range(10))
 
 
 def test_status_is_truthful_through_failure_and_completion(tmp_path):

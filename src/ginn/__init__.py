@@ -11,11 +11,12 @@ The public API, re-exported here (everything else is internal and may change):
 * problems: :class:`Problem`, :class:`ProblemSpec`, :func:`load_spec`, :func:`list_problems`
 * training: :class:`Task`, :class:`ShapeTask`, :class:`Trainer`, :func:`make_task`, :data:`TASKS`
 * losses: the constraint losses, :func:`diversity`, :func:`project_to_zero`
-* evaluation: :func:`evaluate_shapes`
+* evaluation: :func:`evaluate_shapes`, :func:`check_feasibility` (the problem's tolerances)
 """
 
 from . import fields
 from .config import RunConfig, build_config
+from .eval.feasibility import check_feasibility
 from .eval.shapes import evaluate_shapes
 from .geometry import (
     AABox,
@@ -79,5 +80,5 @@ __all__ = [
     "Task", "ShapeTask", "Trainer", "make_task", "TASKS",
     "DesignRegionLoss", "ObstacleLoss", "InterfaceLoss", "NormalLoss", "EikonalLoss", "MeanCurvatureLoss",
     "StrainLoss", "diversity", "project_to_zero",
-    "evaluate_shapes",
+    "evaluate_shapes", "check_feasibility",
 ]

@@ -31,11 +31,12 @@ STRAIN_CLIP = 1000.0
 
 #: Grid cells along the longest domain axis when none is given, by purpose and dimension:
 #: ``eval`` for the metrics of ``ginn eval``, ``output`` for the shapes a run writes, ``figure``
-#: for a figure drawn on its own (3D renders cost time per triangle).
-RESOLUTION = {"eval": {2: 512, 3: 128}, "output": {2: 256, 3: 128}, "figure": {2: 256, 3: 64}}
+#: for a figure drawn on its own (3D renders cost time per triangle), ``check`` for the feasibility
+#: checks during training.
+RESOLUTION = {"eval": {2: 512, 3: 128}, "output": {2: 256, 3: 128}, "figure": {2: 256, 3: 64}, "check": {2: 128, 3: 64}}
 
 
-def default_resolution(purpose: Literal["eval", "output", "figure"], dim: int) -> int:
+def default_resolution(purpose: Literal["eval", "output", "figure", "check"], dim: int) -> int:
     """The grid resolution used for ``purpose`` in ``dim`` dimensions (see :data:`RESOLUTION`)."""
     return RESOLUTION[purpose][dim]
 
@@ -213,6 +214,12 @@ class TrainingConfig(_Strict):
     max_rollbacks: int = Field(3, ge=0, description="give up (error) after this many rollbacks")
     dtype: Literal["float32", "float64"] = Field("float32", description="floating-point type of the model and the samples")
     threads: int = Field(0, ge=0, description="torch CPU threads (0: leave the default)")
+    feasibility_checks: int = Field(
+        10, ge=0, description="shape problems: how many times per run (evenly spaced, and at the end) the shapes are "
+        "checked against the problem's tolerances on a coarse grid; logged and shown in the progress bar (0: never)")
+    stop_when_feasible: bool = Field(
+        False, description="end the run at a feasibility check that finds every shape feasible while the objective "
+        "terms improved by less than 1 % since the previous check")
 
 
 

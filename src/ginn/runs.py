@@ -23,6 +23,7 @@ from torch import Tensor, nn
 
 from .config import RunConfig, build_config, deep_merge, parse_set, with_overrides
 from .errors import ConfigError, GinnError
+from .eval.feasibility import format_feasibility
 from .problems import ProblemSpec, load_spec
 from .tasks import make_task
 from .train.checkpoint import load_checkpoint
@@ -103,7 +104,9 @@ def _finish(trainer: Trainer, task: Task, run_dir: Path, results: bool, say: Say
     out = Outcome(res.status, res.step, res.seconds, run_dir, task, trainer.model, reason=res.reason)
     if not trainer.is_main or res.status != "completed":  # ranks > 0 write nothing; interrupted or stopped
         return out
-    say(f"trained {res.step} iterations in {res.seconds:.1f} s")
+    say(f"trained {res.step} iterations in {res.seconds:.1f} s" + (f" ({res.reason})" if res.reason else ""))
+    if trainer.feasibility is not None:
+        say(f"{format_feasibility(trainer.feasibility)}\n(checked on a coarse grid; `ginn eval` for every metric)")
     if results:
         try:
             out.results = task.finalize(trainer.model, run_dir)

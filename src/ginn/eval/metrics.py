@@ -36,6 +36,7 @@ Names (the keys of ``metrics.json``) and estimators:
 
 from __future__ import annotations
 
+from collections.abc import Collection
 from dataclasses import dataclass
 
 import numpy as np
@@ -152,7 +153,7 @@ def _design_boundary_samples(
     h = float(grid.spacing.min())
     flat_sdf = sdf_ext.reshape(-1)
     band = np.flatnonzero(np.abs(flat_sdf) < h)
-    if band.size == 0:
+    if band.size == 0 or n_max <= 0:
         return np.zeros((0, grid.dim)), np.zeros(0)
     if band.size > n_max:
         band = np.sort(rng.choice(band, size=n_max, replace=False))
@@ -486,41 +487,39 @@ def shape_metrics(
     n_strain_samples: int = 2048,
     seed: int = 0,
     timings: dict | None = None,
+    only: Collection[str] | None = None,
 ) -> dict:
-    """All per-shape metrics of one shape, ``{name: value}`` with the names of :data:`METRIC_NAMES`
-    (``None`` where a metric does not apply, e.g. no interfaces). ``timings``, when given, receives
-    the seconds spent per metric."""
+    """The per-shape metrics of one shape, ``{name: value}`` with the names of :data:`METRIC_NAMES`
+    (``None`` where a metric does not apply, e.g. no interfaces); ``only``: just these names.
+    ``timings``, when given, receives the seconds spent per metric."""
     import time
 
     out: dict = {}
+    wanted = set(METRIC_NAMES if only is None else only)
 
     def timed(name, fn):
+        if name not in wanted:
+            return
         t = time.perf_counter()
         out[name] = fn()
         if timings is not None:
             timings[name] = timings.get(name, 0.0) + time.perf_counter() - t
 
     inside = shape.inside
-    vols = None
+    design_labels: list = []
 
-    def _b0_all():
-        nonlocal vols
-        vols = component_volumes(shape.labels, shape.n_labels, ctx.weights)
-        return int(shape.n_labels)
+    def in_design():  # labels of Omega cap E, computed once when a metric needs them
+        if not design_labels:
+            design_labels.extend(label_components(inside & ctx.in_design))
+        return design_labels
 
-    timed("b0", _b0_all)
-    lab_E, n_E = None, 0
-
-    def _b0_E():
-        nonlocal lab_E, n_E
-        lab_E, n_E = label_components(inside & ctx.in_design)
-        return int(n_E)
-
-    timed("b0_in_design_region", _b0_E)
-    timed("disconnected_volume", lambda: disconnected_volume(vols, ctx.vol_design))
+    timed("b0", lambda: int(shape.n_labels))
+    timed("b0_in_design_region", lambda: int(in_design()[1]))
+    timed("disconnected_volume",
+          lambda: disconnected_volume(component_volumes(shape.labels, shape.n_labels, ctx.weights), ctx.vol_design))
     timed(
         "disconnected_volume_in_design_region",
-        lambda: disconnected_volume(component_volumes(lab_E, n_E, ctx.weights), ctx.vol_design),
+        lambda: disconnected_volume(component_volumes(*in_design(), ctx.weights), ctx.vol_design),
     )
     timed("connected_interfaces_share", lambda: connected_interfaces_share(shape, ctx))
     timed("interface_cd1", lambda: interface_cd1(shape.boundary, ctx.interface_points))

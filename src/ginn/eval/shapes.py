@@ -21,6 +21,7 @@ from ..config import default_resolution
 from ..extract.boundary import Boundary
 from ..fields import Field
 from ..problems.problem import Problem
+from .feasibility import format_feasibility, summarize
 from .metrics import (
     METRIC_NAMES,
     chamfer_matrix,
@@ -86,7 +87,8 @@ def evaluate_shapes(
 
     Returns:
         ``{"problem": name, "n_shapes": S, "shapes": [{metric: value}], "mean": {metric: value},
-        "diversity_mean": value or None}`` (strict JSON; ``None`` where a metric does not apply or
+        "diversity_mean": value or None, "feasibility": :func:`ginn.eval.feasibility.summarize`}``
+        (strict JSON; ``None`` where a metric does not apply or
         is undefined, e.g. the CD1 of an empty shape; means skip ``None``; the diversity is taken
         over the non-empty shapes).
     """
@@ -131,6 +133,7 @@ def evaluate_shapes(
         "shapes": shapes,
         "mean": mean,
         "diversity_mean": div,
+        "feasibility": summarize(shapes, problem),
     }
 
 
@@ -161,6 +164,8 @@ def format_table(result: dict) -> str:
         hi = max(vals) if vals else None
         lines.append(f"| {METRIC_LABELS[k]} | {_fmt(result['mean'].get(k))} | {_fmt(lo)} | {_fmt(hi)} |")
     lines.append(f"| {METRIC_LABELS['diversity_mean']} | {_fmt(result.get('diversity_mean'))} | | |")
+    if result.get("feasibility") is not None:
+        lines += ["", format_feasibility(result["feasibility"])]
     return "\n".join(lines)
 
 

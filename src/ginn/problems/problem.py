@@ -8,6 +8,23 @@ from ..geometry.base import Box, Interface, Region
 
 
 @dataclass(frozen=True)
+class Tolerances:
+    """When a shape counts as feasible (:mod:`ginn.eval.feasibility`), in the problem's units.
+
+    Attributes:
+        interface: bound of ``CD1(dOmega, I)``, the root mean square distance from the interfaces
+            to the shape's boundary, in units of ``unit_scale``.
+        volume_outside: bound of ``vol(Omega \\ E) / vol(X \\ E)`` (the obstacles are outside E).
+        connected: the shape must be one piece inside E that touches every interface component
+            (``b0(Omega cap E) = 1`` and ``CI / n_I = 1``).
+    """
+
+    interface: float = 5e-3
+    volume_outside: float = 5e-3
+    connected: bool = True
+
+
+@dataclass(frozen=True)
 class Problem:
     """A design problem: the shape ``Omega = {f <= 0}`` must lie in ``design_region`` inside
     ``domain``, touch every interface (with its prescribed normals), and avoid the obstacles.
@@ -20,6 +37,7 @@ class Problem:
         obstacles: regions the shape must not enter (also removed from E by the spec builder).
         interface_band: half-width of the denser sampling band around the interfaces (0: none).
         unit_scale: length scale at which metric tolerances such as eps = 0.01 are stated.
+        tolerances: when a shape is feasible (:class:`Tolerances`).
         reference: an independent reference solution evaluation compares against
             (``"minimal-surface"``), or None.
     """
@@ -31,6 +49,7 @@ class Problem:
     obstacles: tuple[Region, ...] = ()
     interface_band: float = 0.0
     unit_scale: float = 1.0
+    tolerances: Tolerances = field(default_factory=Tolerances)
     description: str = ""
     reference: str | None = None
     extra: dict = field(default_factory=dict)

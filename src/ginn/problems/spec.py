@@ -23,7 +23,7 @@ from ..geometry import csg
 from ..geometry.base import Box
 from .interfaces import INTERFACE_TYPES, InterfaceSpec
 from .nodes import Node, NonNegative, Point, Positive, check_lo_hi
-from .problem import Problem
+from .problem import Problem, Tolerances
 from .regions import REGION_TYPES, RegionSpec
 
 
@@ -51,6 +51,15 @@ class GeometrySpec(Node):
     unit_scale: Positive = 1.0
 
 
+class TolerancesSpec(Node):
+    """When a shape is feasible (:class:`~ginn.problems.problem.Tolerances`)."""
+
+    interface: Positive = Field(5e-3, description="bound of CD1 (RMS distance from the interfaces to the shape), "
+                                "in units of geometry.unit_scale")
+    volume_outside: NonNegative = Field(5e-3, description="bound of vol(shape outside E) / vol(X outside E)")
+    connected: bool = Field(True, description="one piece inside E touching every interface component")
+
+
 class ProblemSpec(BaseModel):
     """A validated problem spec. ``defaults`` and ``presets`` are partial RunConfig dicts.
 
@@ -67,6 +76,7 @@ class ProblemSpec(BaseModel):
         None, description="an independent reference solution that evaluation compares against: minimal-surface "
         "(the interfaces are a closed polygon; the discrete minimal surface spanning it)")
     geometry: GeometrySpec | None = Field(default=None, validate_default=True)
+    tolerances: TolerancesSpec = Field(default_factory=TolerancesSpec)
     defaults: dict[str, Any] = Field(default_factory=dict)
     presets: dict[str, dict[str, Any]] = Field(default_factory=dict)
     _base_dir: Path | None = PrivateAttr(default=None)
@@ -144,6 +154,7 @@ class ProblemSpec(BaseModel):
             obstacles=obstacles,
             interface_band=float(g.interface_band),
             unit_scale=float(g.unit_scale),
+            tolerances=Tolerances(**self.tolerances.model_dump()),
             description=self.description,
             reference=self.reference,
             extra={"kind": self.kind, "source": self._source},

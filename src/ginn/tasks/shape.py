@@ -19,6 +19,7 @@ from torch import Tensor, nn
 from .. import fields
 from ..config import LossTerm, RunConfig, default_resolution
 from ..errors import ConfigError, GinnError
+from ..eval.feasibility import FeasibilityCheck
 from ..eval.plateau import evaluate_plateau
 from ..eval.shapes import evaluate_shapes, format_table
 from ..extract.export import export_shapes
@@ -57,6 +58,7 @@ class ShapeTask(Task):
         self.Z = fixed_latents(cfg.latents, self.device, dtype)
         self.lo, self.hi = problem.domain.tensors(self.device, dtype)
         self._conn: ConnectednessLossBase | None = None
+        self._check: FeasibilityCheck | None = None
         self._iface_cloud: cKDTree | None = None  # a dense sample of the interfaces
         s = cfg.sampling
         self.design_loss = C.DesignRegionLoss(power=cfg.losses.containment_power)
@@ -337,6 +339,13 @@ class ShapeTask(Task):
             paths += write_plateau_results(model, self.problem, run_dir, resolution=res)
         return paths
 
+    def feasibility(self, model: nn.Module) -> dict | None:
+        """The problem's tolerances checked on a coarse grid (``RESOLUTION['check']``), with the
+        definitions of ``ginn eval`` (:class:`ginn.eval.feasibility.FeasibilityCheck`)."""
+        if self._check is None:
+            self._check = FeasibilityCheck(self.problem, default_resolution("check", self.d), seed=self.cfg.seed)
+        return self._check(model, self.Z)
+
     def evaluate(self, model: nn.Module, resolution: int | None = None, out_dir: Path | None = None) -> dict:
         """The Appendix B.1 metrics of every shape (:func:`ginn.eval.shapes.evaluate_shapes`), and the
         comparison with the reference surface where the problem has one."""
@@ -347,7 +356,8 @@ class ShapeTask(Task):
 
     def format_metrics(self, metrics: dict) -> str:
         text = format_table(metrics)
-        extra = {k: v for k, v in metrics.items() if k not in ("problem", "n_shapes", "shapes", "mean", "diversity_mean")}
+        extra = {k: v for k, v in metrics.items()
+                 if k not in ("problem", "n_shapes", "shapes", "mean", "diversity_mean", "feasibility")}
         if extra:
             text += "\n" + "\n".join(f"{k}: {v}" for k, v in extra.items())
         return text

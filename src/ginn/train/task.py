@@ -76,6 +76,11 @@ class Task(abc.ABC):
 
     # --- results -----------------------------------------------------------------------------------
 
+    def feasibility(self, model: nn.Module) -> dict | None:
+        """Which shapes meet the problem's tolerances now (a cheap coarse-grid check;
+        :func:`ginn.eval.feasibility.summarize`), or None for tasks without tolerances."""
+        return None
+
     def finalize(self, model: nn.Module, run_dir: Path) -> list[Path]:
         """Write the run's result files (shapes, figures) at the end of training; return their paths."""
         return []

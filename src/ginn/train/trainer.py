@@ -34,6 +34,7 @@ from torch import nn
 
 from ..config import DTYPES, RunConfig, TrainingConfig
 from ..errors import ConfigError, GinnError
+from ..eval.feasibility import short_summary
 from .balancing import make_balancer
 from .checkpoint import load_checkpoint, rng_state, save_checkpoint, set_rng_state
 from .distributed import DistContext
@@ -187,6 +188,9 @@ class Trainer:
         self.elapsed = 0.0
         self._saved_at = 0.0  # training time of the last checkpoint
         self._step_seconds = 0.0  # the longest iteration so far
+        self.feasibility: dict | None = None  # the last feasibility check's summary
+        self._objective = [0.0, 0]  # sum and count of the objective terms since the last check
+        self._objective_before: float | None = None  # their mean over the interval before
 
     # --- checkpoints -------------------------------------------------------------------------
 
@@ -209,6 +213,8 @@ class Trainer:
             "balancer": self.balancer.state_dict(),
             "task": self.task.state_dict(),
             "rng": rng_state(self.gen),
+            "feasibility": {"last": self.feasibility, "objective": list(self._objective),
+                            "objective_before": self._objective_before},
         }
         if self.dist is not None:
             state["ranks"] = self.dist.gather_objects({"task": self.task.state_dict(), "rng": rng_state(self.gen)})
@@ -231,6 +237,10 @@ class Trainer:
         self.lr_scale = float(state.get("lr_scale", 1.0))
         self.rollbacks = int(state.get("rollbacks", 0))
         self.bad_steps = int(state.get("bad_steps", 0))
+        feas = state.get("feasibility") or {}
+        self.feasibility = feas.get("last")
+        self._objective = list(feas.get("objective", [0.0, 0]))
+        self._objective_before = feas.get("objective_before")
         self._saved_at = self.elapsed
         self._apply_lr_scale()
 
@@ -323,6 +333,41 @@ class Trainer:
         except GinnError:
             pass
 
+    def _check_due(self) -> bool:
+        """After the step that completes one of ``feasibility_checks`` equal parts of the run (one
+        process only: under torchrun each rank holds a share of the shapes)."""
+        t = self.cfg.training
+        if t.feasibility_checks <= 0 or self.dist is not None or t.iterations <= 0:
+            return False
+        every = max(1, math.ceil(t.iterations / t.feasibility_checks))
+        return self.step % every == 0 or self.step == t.iterations
+
+    def _check_feasibility(self) -> dict | None:
+        """Check the shapes against the problem's tolerances, log the summary (an event: ``step``
+        is the number of completed iterations) and decide whether ``stop_when_feasible`` ends the
+        run (raises :class:`StopRun`)."""
+        summary = self.task.feasibility(self.model)
+        if summary is None:
+            return None
+        self.feasibility = summary
+        self._log({"step": self.step, "event": "feasibility", "feasible": summary["feasible"],
+                   "shapes": summary["shapes"], "worst": summary["worst"],
+                   "violated": _violated_counts(summary)})
+        total, count = self._objective
+        mean = total / count if count else None
+        before, self._objective_before, self._objective = self._objective_before, mean, [0.0, 0]
+        if (self.cfg.training.stop_when_feasible and summary["feasible"] == summary["shapes"]
+                and mean is not None and before is not None
+                and abs(before - mean) <= 0.01 * max(abs(before), abs(mean), 1e-12)):
+            raise StopRun("completed", f"every shape feasible and the objectives steady at iteration {self.step}")
+        return summary
+
+    def _track_objective(self, values: dict[str, float], active: set[str]) -> None:
+        weights = self.balancer.multipliers()
+        objective = [k for k in self.cfg.balancing.objectives if k in active and k in values]
+        self._objective[0] += sum(weights.get(k, 0.0) * values[k] for k in objective)
+        self._objective[1] += 1
+
     def active_terms(self, step: int) -> set[str]:
         return {k for k, t in self.terms.items() if t.weight > 0 and step >= t.start}
 
@@ -359,6 +404,7 @@ class Trainer:
         self.optimizer.step()
         self.scheduler.step()
         self.balancer.observe({k: values[k] for k in active if k in values}, step)
+        self._track_objective(values, active)
         self.step += 1
         return values
 
@@ -399,10 +445,18 @@ class Trainer:
                             rec = {"step": step, "time": round(self.elapsed, 3), "lr": self.optimizer.param_groups[0]["lr"]}
                             rec.update(values)
                             self._log(rec)
+                        if self._check_due():
+                            try:
+                                self._check_feasibility()
+                            except StopRun as e:
+                                stopped, status = e, e.status
+                                break
                         if bar is not None:
                             bar.update(1)
                             if step % max(1, t.log_every) == 0:
                                 shown = {k: f"{v:.2e}" for k, v in values.items() if not k.startswith("_") and k != "grad_norm"}
+                                if self.feasibility is not None:
+                                    shown["feasible"] = short_summary(self.feasibility)
                                 bar.set_postfix(shown, refresh=False)
                     if values is not None and self.step > 0 and self._checkpoint_due():
                         self.save()
@@ -428,3 +482,12 @@ class Trainer:
             raise
         self._status(status, str(stopped) if stopped is not None else "")
         return TrainResult(self.model, status, self.step, self.elapsed, last, str(stopped) if stopped else "")
+
+
+def _violated_counts(summary: dict) -> dict[str, int]:
+    """How many shapes violate each constraint."""
+    out: dict[str, int] = {}
+    for v in summary["violations"]:
+        for name in v:
+            out[name] = out.get(name, 0) + 1
+    return out

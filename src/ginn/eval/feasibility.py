@@ -1,0 +1,142 @@
+"""Which shapes are feasible: the problem's tolerances applied to the metrics of ``ginn eval``.
+
+A shape is feasible when every constraint of :class:`~ginn.problems.problem.Tolerances` holds:
+
+* ``interface``: ``interface_cd1 <= tolerances.interface * unit_scale`` (problems with interfaces);
+* ``volume_outside``: ``volume_outside <= tolerances.volume_outside``;
+* ``connected`` (when required): ``b0_in_design_region == 1`` and ``connected_interfaces_share == 1``.
+
+The same function judges the final evaluation (``ginn eval``, at the evaluation resolution) and
+the check during training (:func:`check_feasibility`, on a coarse grid with only these metrics)::
+
+    summary = check_feasibility(model, Z, problem, resolution=128)
+    summary["feasible"], summary["shapes"]          # 12, 16
+    print(format_feasibility(summary))
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+from torch import Tensor
+
+from ..fields import Field
+from ..problems.problem import Problem
+from .metrics import MetricContext, extract_shape, prepare_context, shape_metrics
+
+__all__ = ["FEASIBILITY_METRICS", "violations", "summarize", "format_feasibility", "short_summary", "check_feasibility",
+           "FeasibilityCheck"]
+
+#: The metrics the verdict reads.
+FEASIBILITY_METRICS = ("b0_in_design_region", "connected_interfaces_share", "interface_cd1", "volume_outside")
+
+
+def violations(metrics: dict, problem: Problem) -> dict[str, dict]:
+    """The constraints one shape violates, ``{name: {"value": v, "bound": b}}`` (empty: feasible).
+
+    ``metrics`` holds at least :data:`FEASIBILITY_METRICS` (``None`` where a metric does not apply).
+    ``connected`` reports the number of pieces inside E as its value (bound 1) and, when the pieces
+    miss interfaces, the share of interface components reached as ``interfaces``.
+    """
+    tol = problem.tolerances
+    out: dict[str, dict] = {}
+    cd1 = metrics.get("interface_cd1")
+    if problem.interfaces and (cd1 is None or not math.isfinite(cd1) or cd1 > tol.interface * problem.unit_scale):
+        # value None: no boundary to measure from (an empty shape)
+        value = float(cd1) if cd1 is not None and math.isfinite(cd1) else None
+        out["interface"] = {"value": value, "bound": tol.interface * problem.unit_scale}
+    vol = metrics.get("volume_outside")
+    if vol is not None and vol > tol.volume_outside:
+        out["volume_outside"] = {"value": float(vol), "bound": tol.volume_outside}
+    if tol.connected:
+        pieces = metrics.get("b0_in_design_region")
+        share = metrics.get("connected_interfaces_share")
+        if pieces != 1 or (share is not None and share < 1.0 - 1e-12):
+            v = {"value": int(pieces) if pieces is not None else 0, "bound": 1}
+            if share is not None:
+                v["interfaces"] = float(share)
+            out["connected"] = v
+    return out
+
+
+def summarize(shapes: list[dict], problem: Problem) -> dict:
+    """``{"feasible": k, "shapes": S, "violations": [per shape], "worst": {metric: value}}`` for
+    the per-shape metric dicts ``shapes`` (``worst``: the largest CD1 and volume outside E, and
+    the most pieces inside E)."""
+    per = [violations(m, problem) for m in shapes]
+    worst: dict = {}
+    for k in ("interface_cd1", "volume_outside", "b0_in_design_region"):
+        vals = [m.get(k) for m in shapes if m.get(k) is not None]
+        if vals:
+            worst[k] = max(float(v) for v in vals)
+    return {"feasible": sum(not v for v in per), "shapes": len(shapes), "violations": per, "worst": worst}
+
+
+def _num(v: float | None) -> str:
+    return "undefined (no boundary)" if v is None else f"{v:.3g}"
+
+
+def format_feasibility(summary: dict) -> str:
+    """One line with the count, then one line per infeasible shape naming what it violates."""
+    lines = [f"feasible shapes: {summary['feasible']} of {summary['shapes']}"]
+    for i, v in enumerate(summary["violations"]):
+        if not v:
+            continue
+        parts = []
+        for name, d in v.items():
+            if name == "connected":
+                text = f"connected: {d['value']} piece{'' if d['value'] == 1 else 's'} inside E"
+                if d.get("interfaces") is not None and d["interfaces"] < 1:
+                    text += f", {100 * d['interfaces']:.0f} % of the interfaces reached by one piece"
+                parts.append(text)
+            else:
+                parts.append(f"{name} {_num(d['value'])} > {_num(d['bound'])}")
+        lines.append(f"  shape {i}: " + "; ".join(parts))
+    return "\n".join(lines)
+
+
+def short_summary(summary: dict) -> str:
+    """A few words for a progress bar: ``12/16, worst interface 8.1e-03``."""
+    text = f"{summary['feasible']}/{summary['shapes']}"
+    worst = summary["worst"]
+    if "interface_cd1" in worst:
+        text += f", worst interface {worst['interface_cd1']:.1e}"
+    if "volume_outside" in worst:
+        text += f", outside {worst['volume_outside']:.1e}"
+    return text
+
+
+class FeasibilityCheck:
+    """The verdicts of :func:`summarize` on a fixed grid, the metric context built once.
+
+    Arguments:
+        problem: the problem.
+        resolution: grid cells along the longest axis of the domain.
+        seed: of the interface samples.
+    """
+
+    def __init__(self, problem: Problem, resolution: int, seed: int = 0):
+        self.problem = problem
+        self.context: MetricContext = prepare_context(problem, resolution, n_design_boundary_samples=0, seed=seed)
+
+    def __call__(self, field: Field, Z: Tensor | None) -> dict:
+        """The summary for the shapes ``{field(., z_i) <= 0}`` (``Z (S, k)`` or None)."""
+        was_training = field.training if isinstance(field, torch.nn.Module) else None
+        if was_training:
+            field.eval()
+        try:
+            codes = [None] if Z is None else [Z[i] for i in range(Z.shape[0])]
+            shapes = [
+                shape_metrics(extract_shape(field, z, self.context.grid), self.context, field, z, only=FEASIBILITY_METRICS)
+                for z in codes
+            ]
+        finally:
+            if was_training:
+                field.train()
+        return summarize(shapes, self.problem)
+
+
+def check_feasibility(field: Field, Z: Tensor | None, problem: Problem, resolution: int, seed: int = 0) -> dict:
+    """:func:`summarize` of the shapes on a grid of ``resolution`` cells along the longest axis."""
+    return FeasibilityCheck(problem, resolution, seed)(field, Z)

@@ -1,0 +1,129 @@
+"""Feasibility: the problem's tolerances applied to the metrics, during training and in ``ginn eval``."""
+
+import json
+
+import pytest
+import torch
+
+from ginn import runs
+from ginn.config import build_config
+from ginn.eval.feasibility import FEASIBILITY_METRICS, check_feasibility, format_feasibility, summarize, violations
+from ginn.eval.shapes import evaluate_shapes
+from ginn.fields import as_field
+from ginn.geometry import csg
+from ginn.geometry.primitives import AABox, Ball
+from ginn.problems import load_spec, validate_spec
+from ginn.problems.problem import Tolerances
+from ginn.train.trainer import Trainer
+from test_trainer import CircleFit
+
+
+@pytest.fixture(scope="module")
+def obstacle():
+    return load_spec("obstacle").build()
+
+
+def test_violations_name_each_constraint_with_value_and_bound(obstacle):
+    ok = {"interface_cd1": 1e-3, "volume_outside": 0.0, "b0_in_design_region": 1, "connected_interfaces_share": 1.0}
+    assert violations(ok, obstacle) == {}
+    bad = {"interface_cd1": 8e-3, "volume_outside": 0.02, "b0_in_design_region": 2, "connected_interfaces_share": 0.5}
+    v = violations(bad, obstacle)
+    assert v["interface"] == {"value": 8e-3, "bound": 5e-3}
+    assert v["volume_outside"] == {"value": 0.02, "bound": 5e-3}
+    assert v["connected"] == {"value": 2, "bound": 1, "interfaces": 0.5}
+    empty = dict(ok, interface_cd1=None, b0_in_design_region=0)
+    assert violations(empty, obstacle)["interface"]["value"] is None
+    # one piece that misses an interface is not connected either
+    assert "connected" in violations(dict(ok, connected_interfaces_share=0.5), obstacle)
+
+
+def test_tolerances_scale_with_unit_scale_and_can_drop_connectedness(obstacle):
+    import dataclasses
+
+    p = dataclasses.replace(obstacle, unit_scale=2.0, tolerances=Tolerances(interface=5e-3, volume_outside=0.1, connected=False))
+    m = {"interface_cd1": 8e-3, "volume_outside": 0.05, "b0_in_design_region": 3, "connected_interfaces_share": 0.5}
+    assert violations(m, p) == {}  # 8e-3 <= 5e-3 * 2, 0.05 <= 0.1, pieces not required
+    assert violations(dict(m, interface_cd1=0.011), p)["interface"]["bound"] == pytest.approx(0.01)
+
+
+def test_spec_tolerances_reach_the_problem():
+    spec = validate_spec({"name": "t", "geometry": {"dim": 2, "domain": {"lo": [0, 0], "hi": [1, 1]}, "unit_scale": 0.5},
+                          "tolerances": {"interface": 0.01, "volume_outside": 0.002, "connected": False}})
+    p = spec.build()
+    assert p.tolerances == Tolerances(0.01, 0.002, False) and p.unit_scale == 0.5
+    assert validate_spec({"name": "t", "geometry": {"dim": 2, "domain": {"lo": [0, 0], "hi": [1, 1]}}}).build().tolerances \
+        == Tolerances(5e-3, 5e-3, True)
+
+
+def _fields(problem):
+    """Analytic shapes with known verdicts: E itself (feasible), the whole domain (volume outside E
+    = 1, its boundary far from the interfaces), a small disk far from the interfaces (misses them), and thin disks around the two
+    interfaces (two pieces)."""
+    lo, hi = problem.domain.lo, problem.domain.hi
+    whole = AABox([a - 1 for a in lo], [b + 1 for b in hi])
+    centres = [itf.sample(1, generator=torch.Generator().manual_seed(0), dtype=torch.float64)[0][0]
+               for itf in problem.interfaces]
+    disks = csg.Intersection(csg.Union(*[Ball([float(c) for c in x], 0.05) for x in centres]), problem.design_region)
+    return {
+        "design region": (problem.design_region.sdf, set()),
+        "whole domain": (whole.sdf, {"volume_outside", "interface"}),  # no boundary at the interfaces
+        "small disk": (Ball([0.0, 0.0], 0.02).sdf, {"interface", "connected"}),
+        "two disks": (disks.sdf, {"interface", "connected"}),
+    }
+
+
+def test_check_and_eval_give_the_same_verdicts(obstacle):
+    for name, (sdf, expected) in _fields(obstacle).items():
+        field = as_field(sdf)
+        coarse = check_feasibility(field, None, obstacle, resolution=128)
+        fine = evaluate_shapes(field, None, obstacle, resolution=512)["feasibility"]
+        assert set(coarse["violations"][0]) == expected, (name, coarse)
+        assert set(fine["violations"][0]) == expected, (name, fine)
+        assert coarse["feasible"] == fine["feasible"] == (0 if expected else 1)
+
+
+def test_summary_counts_and_worst(obstacle):
+    shapes = [{"interface_cd1": c, "volume_outside": v, "b0_in_design_region": b, "connected_interfaces_share": 1.0}
+              for c, v, b in [(1e-3, 0.0, 1), (9e-3, 1e-3, 1), (2e-3, 0.2, 3)]]
+    s = summarize(shapes, obstacle)
+    assert s["feasible"] == 1 and s["shapes"] == 3
+    assert s["worst"] == {"interface_cd1": 9e-3, "volume_outside": 0.2, "b0_in_design_region": 3.0}
+    text = format_feasibility(s)
+    assert text.splitlines()[0] == "feasible shapes: 1 of 3"
+    assert "shape 1: interface 0.009 > 0.005" in text and "shape 2: volume_outside 0.2 > 0.005; connected: 3 pieces" in text
+    assert set(FEASIBILITY_METRICS) <= set(shapes[0])
+
+
+def test_training_logs_the_checks_and_leaves_the_weights_alone(tmp_path):
+    over = {"training": {"iterations": 40, "log_every": 10, "feasibility_checks": 4}, "latents": {"n_shapes": 2},
+            "model": {"hidden": [16, 16]}, "sampling": {"n_domain": 128, "n_interface": 64},
+            "losses": {"connectedness": {"weight": 0}}}
+    spec, cfg = runs.resolve("obstacle", "demo", over)
+    out = runs.train(spec, cfg, tmp_path / "a", progress=False, results=False)
+    events = [json.loads(x) for x in (tmp_path / "a" / "metrics.jsonl").read_text().splitlines()]
+    checks = [e for e in events if e.get("event") == "feasibility"]
+    assert [e["step"] for e in checks] == [10, 20, 30, 40]  # events: completed iterations
+    assert all(e["shapes"] == 2 and 0 <= e["feasible"] <= 2 for e in checks)
+    spec, off = runs.resolve("obstacle", "demo", {**over, "training": {**over["training"], "feasibility_checks": 0}})
+    ref = runs.train(spec, off, tmp_path / "b", progress=False, results=False)
+    for p, q in zip(out.model.parameters(), ref.model.parameters()):
+        assert torch.equal(p, q)
+
+
+class AlwaysFeasible(CircleFit):
+    def feasibility(self, model):
+        return {"feasible": 1, "shapes": 1, "violations": [{}], "worst": {}}
+
+
+def test_stop_when_feasible_waits_for_steady_objectives(tmp_path):
+    def cfg(stop):
+        return build_config({"seed": 0, "training": {"iterations": 1000, "lr": 1e-2, "lr_decay_every": 200,
+                                                     "feasibility_checks": 10, "stop_when_feasible": stop},
+                             "balancing": {"objectives": ["fit"]}})
+    res = Trainer(AlwaysFeasible(cfg(True)), cfg(True), tmp_path / "a", progress=False).train()
+    # the learning rate halves every 200 iterations, so the fit settles well before the end
+    assert res.status == "completed" and 200 <= res.step < 1000 and res.step % 100 == 0
+    assert "objectives steady" in res.reason
+    # without the flag the run goes to the end; without a verdict (no tolerances) nothing stops
+    assert Trainer(AlwaysFeasible(cfg(False)), cfg(False), None, progress=False).train().step == 1000
+    assert Trainer(CircleFit(cfg(True)), cfg(True), None, progress=False).train().step == 1000
