@@ -2,6 +2,7 @@
 
 import json
 
+import numpy as np
 import pytest
 import torch
 
@@ -80,6 +81,8 @@ def test_check_and_eval_give_the_same_verdicts(obstacle):
         assert set(coarse["violations"][0]) == expected, (name, coarse)
         assert set(fine["violations"][0]) == expected, (name, fine)
         assert coarse["feasible"] == fine["feasible"] == (0 if expected else 1)
+    empty = check_feasibility(as_field(lambda x: torch.ones_like(x[:, 0])), None, obstacle, resolution=64)
+    assert empty["violations"][0]["interface"]["value"] is None and "interface_cd1" not in empty["worst"]
 
 
 def test_summary_counts_and_worst(obstacle):
@@ -104,6 +107,7 @@ def test_training_logs_the_checks_and_leaves_the_weights_alone(tmp_path):
     checks = [e for e in events if e.get("event") == "feasibility"]
     assert [e["step"] for e in checks] == [10, 20, 30, 40]  # events: completed iterations
     assert all(e["shapes"] == 2 and 0 <= e["feasible"] <= 2 for e in checks)
+    json.dumps(checks, allow_nan=False)  # strict JSON, also for empty shapes
     spec, off = runs.resolve("obstacle", "demo", {**over, "training": {**over["training"], "feasibility_checks": 0}})
     ref = runs.train(spec, off, tmp_path / "b", progress=False, results=False)
     for p, q in zip(out.model.parameters(), ref.model.parameters()):
@@ -127,3 +131,25 @@ def test_stop_when_feasible_waits_for_steady_objectives(tmp_path):
     # without the flag the run goes to the end; without a verdict (no tolerances) nothing stops
     assert Trainer(AlwaysFeasible(cfg(False)), cfg(False), None, progress=False).train().step == 1000
     assert Trainer(CircleFit(cfg(True)), cfg(True), None, progress=False).train().step == 1000
+
+
+def test_shape_pictures_show_the_problem_and_the_verdict(tmp_path):
+    """A 2D run's per-shape PNG draws the obstacles (grey fill) and E's outline under the shape,
+    and its name and verdict match the check."""
+    import matplotlib.image
+
+    from ginn.tasks import make_task
+    from ginn.viz.plot import save_shape_figure
+
+    spec, cfg = runs.resolve("obstacle", "demo", {"latents": {"n_shapes": 2}, "model": {"hidden": [16, 16]}})
+    task = make_task(spec, cfg)
+    model = task.build_model().double()
+    task.Z = task.Z.double()
+    paths = task.export(model, None, tmp_path, 64)
+    pngs = sorted(p for p in paths if p.suffix == ".png")
+    assert [p.name[:9] for p in pngs] == ["shape_000", "shape_001"]
+    assert {p.suffix for p in paths} == {".png", ".json", ".csv", ".npz", ".svg"}
+    # an empty shape over the obstacle problem: the obstacle's grey (217, 217, 217) is drawn
+    empty = save_shape_figure([], task.problem, tmp_path / "empty.png", "feasible")
+    rgb = (matplotlib.image.imread(empty)[..., :3] * 255).round()
+    assert (np.abs(rgb - 217).max(axis=-1) < 2).sum() > 100

@@ -181,15 +181,22 @@ class ConnectednessConfig(_Strict):
 class BalancingConfig(_Strict):
     """How loss terms are combined: fixed weights, or an augmented Lagrangian."""
 
-    method: Literal["weighted", "augmented-lagrangian"] = Field(
-        "weighted", description="weighted: the sum of weight * term (the paper); augmented-lagrangian: constraints with multipliers")
+    method: Literal["weighted", "adaptive", "augmented-lagrangian"] = Field(
+        "weighted", description="weighted: the sum of weight * term (the paper); adaptive: constraint terms held at "
+        "targets derived from the problem's tolerances by multipliers adapted from their running violation, the weights "
+        "only starting them; augmented-lagrangian: constraints driven to zero with multipliers")
     objectives: list[str] = Field(default_factory=lambda: ["eikonal", "mean_curvature", "strain", "diversity", "connectedness"],
-                                  description="terms minimised as objectives; the rest are constraints (augmented Lagrangian)")
+                                  description="weighted and augmented-lagrangian: the terms minimised as objectives, the rest are "
+                                  "constraints (adaptive: the constraints are the terms the task derives targets for)")
     mu: float = Field(1.0, gt=0, description="initial penalty parameter")
     mu_growth: float = Field(1.0, ge=1.0, description="penalty growth factor per multiplier update")
     mu_max: float = Field(1e4, gt=0, description="upper bound of the penalty parameter")
     update_every: int = Field(100, ge=1, description="iterations between multiplier updates")
     lambda_lr: float = Field(1.0, gt=0, description="step size of the multiplier update")
+    step: float = Field(0.01, gt=0, le=0.5, description="adaptive: largest relative change of a multiplier per iteration")
+    average: float = Field(0.99, ge=0, lt=1, description="adaptive: factor of the running average of each constraint term")
+    floor: float = Field(1e-2, gt=0, description="adaptive: below this a multiplier moves by absolute steps (so it can reach 0)")
+    multiplier_max: float = Field(1e8, gt=0, description="adaptive: upper bound of a multiplier")
 
 
 class TrainingConfig(_Strict):

@@ -25,7 +25,7 @@ from ..fields import Field
 from ..problems.problem import Problem
 from .metrics import MetricContext, extract_shape, prepare_context, shape_metrics
 
-__all__ = ["FEASIBILITY_METRICS", "violations", "summarize", "format_feasibility", "short_summary", "check_feasibility",
+__all__ = ["FEASIBILITY_METRICS", "violations", "summarize", "verdict_text", "format_feasibility", "short_summary", "check_feasibility",
            "FeasibilityCheck"]
 
 #: The metrics the verdict reads.
@@ -77,22 +77,26 @@ def _num(v: float | None) -> str:
     return "undefined (no boundary)" if v is None else f"{v:.3g}"
 
 
+def verdict_text(violated: dict[str, dict]) -> str:
+    """``feasible``, or each violated constraint of :func:`violations` with its value and bound."""
+    if not violated:
+        return "feasible"
+    parts = []
+    for name, d in violated.items():
+        if name == "connected":
+            text = f"connected: {d['value']} piece{'' if d['value'] == 1 else 's'} inside E"
+            if d.get("interfaces") is not None and d["interfaces"] < 1:
+                text += f", {100 * d['interfaces']:.0f} % of the interfaces reached by one piece"
+            parts.append(text)
+        else:
+            parts.append(f"{name} {_num(d['value'])} > {_num(d['bound'])}")
+    return "; ".join(parts)
+
+
 def format_feasibility(summary: dict) -> str:
     """One line with the count, then one line per infeasible shape naming what it violates."""
     lines = [f"feasible shapes: {summary['feasible']} of {summary['shapes']}"]
-    for i, v in enumerate(summary["violations"]):
-        if not v:
-            continue
-        parts = []
-        for name, d in v.items():
-            if name == "connected":
-                text = f"connected: {d['value']} piece{'' if d['value'] == 1 else 's'} inside E"
-                if d.get("interfaces") is not None and d["interfaces"] < 1:
-                    text += f", {100 * d['interfaces']:.0f} % of the interfaces reached by one piece"
-                parts.append(text)
-            else:
-                parts.append(f"{name} {_num(d['value'])} > {_num(d['bound'])}")
-        lines.append(f"  shape {i}: " + "; ".join(parts))
+    lines += [f"  shape {i}: {verdict_text(v)}" for i, v in enumerate(summary["violations"]) if v]
     return "\n".join(lines)
 
 
@@ -134,6 +138,8 @@ class FeasibilityCheck:
         finally:
             if was_training:
                 field.train()
+        # as in ginn eval: undefined values (the CD1 of an empty shape) are None, JSON has no infinity
+        shapes = [{k: v if not isinstance(v, float) or math.isfinite(v) else None for k, v in m.items()} for m in shapes]
         return summarize(shapes, self.problem)
 
 

@@ -17,11 +17,14 @@ class Tolerances:
         volume_outside: bound of ``vol(Omega \\ E) / vol(X \\ E)`` (the obstacles are outside E).
         connected: the shape must be one piece inside E that touches every interface component
             (``b0(Omega cap E) = 1`` and ``CI / n_I = 1``).
+        normal_angle: the angle in degrees by which the shape's normals may deviate from the
+            prescribed ones, on average (a training target; not part of the verdict).
     """
 
     interface: float = 5e-3
     volume_outside: float = 5e-3
     connected: bool = True
+    normal_angle: float = 10.0
 
 
 @dataclass(frozen=True)

@@ -58,6 +58,8 @@ class TolerancesSpec(Node):
                                 "in units of geometry.unit_scale")
     volume_outside: NonNegative = Field(5e-3, description="bound of vol(shape outside E) / vol(X outside E)")
     connected: bool = Field(True, description="one piece inside E touching every interface component")
+    normal_angle: Annotated[float, Field(gt=0, le=90)] = Field(
+        10.0, description="mean deviation of the normals from the prescribed ones, degrees (a training target)")
 
 
 class ProblemSpec(BaseModel):

@@ -19,10 +19,10 @@ from torch import Tensor, nn
 from .. import fields
 from ..config import LossTerm, RunConfig, default_resolution
 from ..errors import ConfigError, GinnError
-from ..eval.feasibility import FeasibilityCheck
+from ..eval.feasibility import FeasibilityCheck, verdict_text
 from ..eval.plateau import evaluate_plateau
 from ..eval.shapes import evaluate_shapes, format_table
-from ..extract.export import export_shapes
+from ..extract.export import CONTOUR_FORMATS, export_shapes, latent_label, shape_boundary
 from ..extract.grid import check_grid_memory, make_grid
 from ..geometry import sampling
 from ..levelset import project_to_zero
@@ -35,7 +35,7 @@ from ..topology import ConnectednessLossBase, make_connectedness_loss
 from ..train.distributed import DistContext, cross_values_sharded
 from ..train.task import Task
 from ..viz.plateau import write_plateau_results
-from ..viz.plot import plot_run
+from ..viz.plot import plot_run, save_shape_figure
 
 
 class ShapeTask(Task):
@@ -333,11 +333,32 @@ class ShapeTask(Task):
         run_dir = Path(run_dir)
         model.eval()
         res = self._output_resolution()
-        paths = export_shapes(model, self.Z, self.problem.domain, run_dir / "shapes", res, mesh_format="stl")
+        paths = self._write_shapes(model, self.Z, run_dir / "shapes", res, "stl")
         paths += self.plot(model, run_dir, res)
         if self.problem.reference == "minimal-surface":
             paths += write_plateau_results(model, self.problem, run_dir, resolution=res)
         return paths
+
+    def constraint_targets(self) -> dict[str, float]:
+        """Targets of the constraint terms from the problem's tolerances (``balancing.method:
+        adaptive``). With ``d = tolerances.interface * unit_scale / 2`` (half the CD1 bound: the
+        field's value on an interface is its distance there only up to ``|grad f|``):
+
+        * ``interface`` (mean ``f^2`` on the interfaces): ``d^2``;
+        * ``normal`` (mean ``|n - n_prescribed|^2 = 2 (1 - cos angle)``): ``2 (1 - cos normal_angle)``;
+        * ``design_region``, ``obstacle`` (mean penalty over samples where the shape must not be):
+          ``volume_outside * d^p`` (``p = losses.containment_power``): at most that share of the
+          samples inside the shape, by at most ``d``;
+        * ``connectedness``: 0 (no penalised saddle).
+        """
+        t, p = self.problem.tolerances, self.cfg.losses.containment_power
+        d = 0.5 * t.interface * self.problem.unit_scale
+        out = {"interface": d * d, "normal": 2.0 * (1.0 - math.cos(math.radians(t.normal_angle))),
+               "design_region": t.volume_outside * d ** p, "obstacle": t.volume_outside * d ** p,
+               "eikonal": 0.01}
+        if t.connected:
+            out["connectedness"] = 0.0
+        return out
 
     def feasibility(self, model: nn.Module) -> dict | None:
         """The problem's tolerances checked on a coarse grid (``RESOLUTION['check']``), with the
@@ -380,8 +401,23 @@ class ShapeTask(Task):
             if not all(math.isfinite(float(x)) for v in rows for x in v):
                 raise GinnError("--latent: latent values must be finite numbers")
             Z = torch.tensor(rows, dtype=Z.dtype, device=Z.device)
-        return export_shapes(model, Z, self.problem.domain, Path(out_dir), self._output_resolution(resolution),
-                             mesh_format=mesh_format or "stl")
+        return self._write_shapes(model, Z, Path(out_dir), self._output_resolution(resolution), mesh_format or "stl")
+
+    def _write_shapes(self, model: nn.Module, Z: Tensor | None, out_dir: Path, resolution: int, mesh_format: str) -> list[Path]:
+        """Each shape of ``Z (S, k)`` (None: the single shape): a mesh in 3D; in 2D its contours, and
+        a drawing over the problem titled with its feasibility verdict (coarse-grid check)."""
+        if self.d == 3:
+            return export_shapes(model, Z, self.problem.domain, out_dir, resolution, mesh_format=mesh_format)
+        paths = export_shapes(model, Z, self.problem.domain, out_dir, resolution,
+                              contour_formats=[f for f in CONTOUR_FORMATS if f != "png"])
+        summary = FeasibilityCheck(self.problem, default_resolution("check", self.d), seed=self.cfg.seed)(model, Z)
+        codes = [None] if Z is None else [Z[i] for i in range(Z.shape[0])]
+        for i, (z, violated) in enumerate(zip(codes, summary["violations"])):
+            boundary, _, _ = shape_boundary(model, z, self.problem.domain, resolution)
+            name = "shape.png" if z is None else f"shape_{i:03d}_{latent_label(z)}.png"
+            label = "" if z is None else f"shape {i} (z = {', '.join(f'{float(v):.3g}' for v in z)}): "
+            paths.append(save_shape_figure(boundary, self.problem, out_dir / name, label + verdict_text(violated)))
+        return paths
 
     def plot(self, model: nn.Module, run_dir: Path, resolution: int | None = None) -> list[Path]:
         """The paper-style figures into ``run_dir/figures`` (:func:`ginn.viz.plot.plot_run`)."""

@@ -1,4 +1,5 @@
-"""Combining loss terms into one objective: fixed weights, or an augmented Lagrangian.
+"""Combining loss terms into one objective: fixed weights, constraints with tolerances and adaptive
+multipliers, or an augmented Lagrangian.
 
 Fixed weights (the paper): ``L = sum_i lambda_i l_i``.
 
@@ -13,9 +14,26 @@ Every ``update_every`` iterations the multipliers take a dual ascent step
 ``lambda_i <- lambda_i + lambda_lr * mu * mean(c_i since the last update)`` and ``mu`` grows by
 ``mu_growth`` (capped at ``mu_max``). The initial multipliers are the configured weights, so a
 problem's hand-tuned weights are a starting point, not a requirement.
+
+Adaptive multipliers (``method: adaptive``): each constraint term ``l_i`` has a target ``eps_i``
+(the task's :meth:`~ginn.train.task.Task.constraint_targets`, derived from the problem's
+tolerances) and the objective is ``sum_obj w_j l_j + sum_con lambda_i l_i``, the Lagrangian of
+``min objectives s.t. l_i <= eps_i`` up to a constant. After every step the running average
+``m_i`` of ``l_i`` (an exponential average with factor ``average``, bias-corrected) moves the
+multiplier by a relative step::
+
+    r_i = tanh(log((m_i + t_i) / (eps_i + t_i)))        in (-1, 1); t_i = 1e-3 eps_i + 1e-30
+    lambda_i <- clip(lambda_i + step * max(lambda_i, floor) * r_i, 0, multiplier_max)
+
+so a violated constraint's multiplier grows by up to ``step`` of itself per iteration, a satisfied
+one shrinks, and an inactive one reaches 0 (below ``floor`` the steps are absolute). Relative steps
+make the update free of units: the same settings find multipliers of 1e-1 or 1e4, whatever the
+scale of the term. A term without a target is an objective with its configured weight.
 """
 
 from __future__ import annotations
+
+import math
 
 from torch import Tensor
 
@@ -23,10 +41,15 @@ from ..config import BalancingConfig, LossTerm
 
 
 class WeightedSum:
-    """``sum_i w_i l_i`` with the configured weights."""
+    """``sum_i w_i l_i`` with the configured weights; ``objectives``: the terms that count as
+    objectives (the rest are constraints) where it matters (``training.stop_when_feasible``)."""
 
-    def __init__(self, terms: dict[str, LossTerm]):
+    def __init__(self, terms: dict[str, LossTerm], objectives=()):
         self.weights = {k: t.weight for k, t in terms.items()}
+        self.objectives = set(objectives)
+
+    def is_objective(self, term: str) -> bool:
+        return term in self.objectives
 
     def combine(self, losses: dict[str, Tensor], step: int) -> Tensor:
         total = None
@@ -56,9 +79,8 @@ class AugmentedLagrangian(WeightedSum):
     """Constraints as targets (``c_i -> 0``), objectives minimised; see the module docstring."""
 
     def __init__(self, terms: dict[str, LossTerm], cfg: BalancingConfig):
-        super().__init__(terms)
+        super().__init__(terms, cfg.objectives)
         self.cfg = cfg
-        self.objectives = set(cfg.objectives)
         self.lam = {k: w for k, w in self.weights.items() if k not in self.objectives}
         self.mu = cfg.mu
         self._acc: dict[str, float] = {}
@@ -104,9 +126,73 @@ class AugmentedLagrangian(WeightedSum):
         self._count = int(state["count"])
 
 
-def make_balancer(terms: dict[str, LossTerm], cfg: BalancingConfig) -> WeightedSum:
+class AdaptiveMultipliers(WeightedSum):
+    """Constraints ``l_i <= eps_i`` with multipliers adapted from their running violation; see
+    the module docstring.
+
+    Arguments:
+        terms: every loss term (the weights start the multipliers and weigh the objectives).
+        cfg: ``step``, ``average``, ``floor``, ``multiplier_max``.
+        targets: ``{term: eps}`` for the constraint terms (others are objectives).
+    """
+
+    def __init__(self, terms: dict[str, LossTerm], cfg: BalancingConfig, targets: dict[str, float]):
+        self.cfg = cfg
+        self.targets = {k: float(v) for k, v in targets.items() if k in terms}
+        super().__init__(terms, [k for k in terms if k not in self.targets])
+        self.lam = {k: max(self.weights[k], cfg.floor) for k in self.targets}
+        self.avg = {k: 0.0 for k in self.targets}  # exponential averages, not bias-corrected
+        self.seen = {k: 0 for k in self.targets}  # updates of each average
+
+    def combine(self, losses: dict[str, Tensor], step: int) -> Tensor:
+        total = None
+        for k, v in losses.items():
+            if k.startswith("_"):
+                continue
+            t = (self.lam[k] if k in self.lam else self.weights.get(k, 0.0)) * v
+            total = t if total is None else total + t
+        if total is None:
+            raise ValueError("no active loss term")
+        return total
+
+    def running(self, k: str) -> float:
+        """The bias-corrected running average of constraint ``k``."""
+        n = self.seen[k]
+        return self.avg[k] / (1.0 - self.cfg.average ** n) if n else 0.0
+
+    def observe(self, losses: dict[str, float], step: int) -> None:
+        beta, c = self.cfg.average, self.cfg
+        for k, v in losses.items():
+            if k not in self.lam or not math.isfinite(v):
+                continue
+            self.avg[k] = beta * self.avg[k] + (1.0 - beta) * float(v)
+            self.seen[k] += 1
+            eps = self.targets[k]
+            tiny = 1e-3 * eps + 1e-30
+            r = math.tanh(math.log((max(self.running(k), 0.0) + tiny) / (eps + tiny)))
+            lam = self.lam[k] + c.step * max(self.lam[k], c.floor) * r
+            self.lam[k] = min(max(lam, 0.0), c.multiplier_max)
+
+    def multipliers(self) -> dict[str, float]:
+        out = {k: w for k, w in self.weights.items() if k not in self.lam}
+        out.update(self.lam)
+        return out
+
+    def state_dict(self) -> dict:
+        return {"lam": dict(self.lam), "avg": dict(self.avg), "seen": dict(self.seen)}
+
+    def load_state_dict(self, state: dict) -> None:
+        self.lam = {k: float(v) for k, v in state["lam"].items()}
+        self.avg = {k: float(v) for k, v in state["avg"].items()}
+        self.seen = {k: int(v) for k, v in state["seen"].items()}
+
+
+def make_balancer(terms: dict[str, LossTerm], cfg: BalancingConfig, targets: dict[str, float] | None = None) -> WeightedSum:
+    """The balancer of ``cfg.method``; ``targets``: the constraint targets for ``adaptive``."""
     if cfg.method == "weighted":
-        return WeightedSum(terms)
+        return WeightedSum(terms, cfg.objectives)
+    if cfg.method == "adaptive":
+        return AdaptiveMultipliers(terms, cfg, targets or {})
     return AugmentedLagrangian(terms, cfg)
 
 

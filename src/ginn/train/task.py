@@ -76,6 +76,11 @@ class Task(abc.ABC):
 
     # --- results -----------------------------------------------------------------------------------
 
+    def constraint_targets(self) -> dict[str, float]:
+        """``{term: eps}``: the loss terms that are constraints ``term <= eps`` under
+        ``balancing.method: adaptive`` (the rest are objectives); none by default."""
+        return {}
+
     def feasibility(self, model: nn.Module) -> dict | None:
         """Which shapes meet the problem's tolerances now (a cheap coarse-grid check;
         :func:`ginn.eval.feasibility.summarize`), or None for tasks without tolerances."""

@@ -181,7 +181,7 @@ class Trainer:
         if first > 0:
             raise ConfigError(f"no loss term is active at iteration 0 (the earliest start is {first}); "
                               "set losses.<term>.start = 0 for at least one term")
-        self.balancer = make_balancer(self.terms, cfg.balancing)
+        self.balancer = make_balancer(self.terms, cfg.balancing, task.constraint_targets())
         self.step = 0
         self.bad_steps = 0
         self.rollbacks = 0
@@ -364,7 +364,7 @@ class Trainer:
 
     def _track_objective(self, values: dict[str, float], active: set[str]) -> None:
         weights = self.balancer.multipliers()
-        objective = [k for k in self.cfg.balancing.objectives if k in active and k in values]
+        objective = [k for k in active if k in values and self.balancer.is_objective(k)]
         self._objective[0] += sum(weights.get(k, 0.0) * values[k] for k in objective)
         self._objective[1] += 1
 
@@ -444,6 +444,9 @@ class Trainer:
                         if step % t.log_every == 0 or self.step == total_iters:
                             rec = {"step": step, "time": round(self.elapsed, 3), "lr": self.optimizer.param_groups[0]["lr"]}
                             rec.update(values)
+                            if self.cfg.balancing.method != "weighted":
+                                rec["multipliers"] = {k: float(f"{v:.6g}") for k, v in self.balancer.multipliers().items()
+                                                      if k in values}
                             self._log(rec)
                         if self._check_due():
                             try:

@@ -126,6 +126,20 @@ def save_shape_png(shape: Boundary | Sequence[np.ndarray], domain: Box, path: st
     return save_figure(fig, path)
 
 
+def save_shape_figure(shape: Boundary | Sequence[np.ndarray], problem: Problem, path: str | Path, title: str = "",
+                      color=SHAPE_COLOR) -> Path:
+    """A single 2D shape, filled, over its problem (the domain, E's outline, the obstacles and the
+    interfaces), with ``title`` (e.g. its feasibility verdict) above it."""
+    ext = np.asarray(problem.domain.hi) - np.asarray(problem.domain.lo)
+    fig = new_figure(6, 6 * ext[1] / ext[0] + (0.6 if title else 0.2))
+    ax = fig.add_subplot(1, 1, 1)
+    draw_shape_2d(ax, shape, color, alpha=0.85)
+    draw_problem_2d(ax, problem)
+    if title:
+        ax.set_title(title, fontsize=8, wrap=True)
+    return save_figure(fig, path)
+
+
 # --- 3D -----------------------------------------------------------------------------------------------
 
 
