@@ -45,9 +45,14 @@ def _run(args, capsys, monkeypatch, cwd) -> tuple[int, str]:
 CASES = {
     "--out is a file": (lambda r, t: (t / "f").write_text("x") and ["train", "obstacle", "--out", t / "f", *TINY],
                         "not a directory"),
-    "no active loss": (lambda r, t: (t / "empty.yaml").write_text(
+    "no interfaces": (lambda r, t: (t / "empty.yaml").write_text(
         "name: empty\ngeometry: {dim: 2, domain: {lo: [0, 0], hi: [1, 1]}}\n") and ["train", t / "empty.yaml"],
-        "no active loss term"),
+        "geometry.interfaces': a shape problem needs at least one interface"),
+    "no active loss": (lambda r, t: (t / "off.yaml").write_text(
+        "name: noloss\ngeometry: {dim: 2, domain: {lo: [0, 0], hi: [1, 1]}, interfaces: [{type: segment, a: [0, 0], b: [1, 0]}]}\n"
+        "defaults: {losses: {" + ", ".join(f"{k}: {{weight: 0}}" for k in (
+            "interface", "design_region", "obstacle", "normal", "eikonal", "connectedness", "diversity")) + "}}\n")
+        and ["train", t / "off.yaml"], "no active loss term"),
     "export --resolution -3": (lambda r, t: ["export", r, "--resolution", "-3"], "--resolution"),
     "eval --resolution 0": (lambda r, t: ["eval", r, "--resolution", "0"], "--resolution"),
     "eval --resolution 1e8": (lambda r, t: ["eval", r, "--resolution", "100000000"], "resolution 100000000"),

@@ -67,6 +67,10 @@ class ModelConfig(_Strict):
     sigma: float = Field(1.0, gt=0, description="Fourier-feature scale (fourier)", json_schema_extra={"kinds": ("fourier",)})
     n_features: int = Field(128, gt=0, description="number of Fourier features (fourier)", json_schema_extra={"kinds": ("fourier",)})
     periodic: bool = Field(False, description="encode x -> (sin 2 pi x, cos 2 pi x) first")
+    frame: Literal["raw", "domain"] = Field(
+        "raw", description="shape problems: raw feeds the points as they are; domain feeds (x - c) / s and returns "
+        "s times the output (c the domain's centre, s half its longest side), so that a problem of any size looks "
+        "the same to the network")
 
     @field_validator("hidden")
     @classmethod

@@ -154,7 +154,7 @@ def train(
     run_dir = on_main(dist, lambda: new_run_dir(spec.name, out))
     main = dist is None or dist.is_main
     if main:
-        write_run_files(run_dir, cfg, _spec_file(spec))
+        write_run_files(run_dir, cfg, _spec_file(spec), notes=spec.derived_notes(cfg))
         if prepare is not None:
             prepare(run_dir)
     where = cfg.device if dist is None else f"{dist.world} x {dist.device} ({dist.backend})"

@@ -3,12 +3,14 @@
 
 from .base import ConcatConditioning, Conditioning, IdentityEncoding, NeuralField, PeriodicEncoding
 from .factory import build_model
+from .frame import DomainFrame
 from .latents import fixed_latents, latent_dim, midpoints, random_latents
 from .mlp import MLP, FourierFeatures, FourierMLP, ResMLP, make_activation
 from .siren import SineLayer, Siren
 
 __all__ = [
     "NeuralField",
+    "DomainFrame",
     "Conditioning",
     "ConcatConditioning",
     "PeriodicEncoding",

@@ -21,6 +21,7 @@ from ..config import TASK_KINDS, RunConfig, build_config
 from ..errors import ConfigError, SpecError, field_message, field_path
 from ..geometry import csg
 from ..geometry.base import Box
+from .derived import derived_defaults, half_longest_side
 from .interfaces import INTERFACE_TYPES, InterfaceSpec
 from .nodes import Node, NonNegative, Point, Positive, check_lo_hi
 from .problem import Problem, Tolerances
@@ -48,7 +49,8 @@ class GeometrySpec(Node):
     interfaces: list[InterfaceSpec] = Field(default_factory=list)
     obstacles: list[RegionSpec] = Field(default_factory=list)
     interface_band: NonNegative = 0.0
-    unit_scale: Positive = 1.0
+    unit_scale: Positive | None = Field(
+        None, description="the length at which tolerances are stated; default half the longest side of the domain")
 
 
 class TolerancesSpec(Node):
@@ -83,6 +85,7 @@ class ProblemSpec(BaseModel):
     presets: dict[str, dict[str, Any]] = Field(default_factory=dict)
     _base_dir: Path | None = PrivateAttr(default=None)
     _source: str = PrivateAttr(default="")
+    _derived: tuple | None = PrivateAttr(default=None)
 
     @field_validator("geometry")
     @classmethod
@@ -100,8 +103,9 @@ class ProblemSpec(BaseModel):
 
     def config(self, preset: str | None = None, *overrides: dict) -> RunConfig:
         """The resolved :class:`~ginn.config.RunConfig`: ``{problem, preset, params.kind}``, then
-        ``defaults``, then ``presets[preset]``, then each override dict. The one place a spec
-        becomes a run configuration.
+        (shape problems) the settings derived from the geometry (:mod:`ginn.problems.derived`),
+        then ``defaults``, then ``presets[preset]``, then each override dict. The one place a
+        spec becomes a run configuration.
 
         Raises:
             ConfigError: unknown preset or an invalid value (overrides); values from the spec
@@ -110,7 +114,27 @@ class ProblemSpec(BaseModel):
         if preset is not None and preset not in self.presets:
             avail = ", ".join(sorted(self.presets)) or "none"
             raise ConfigError(f"unknown preset '{preset}' for problem '{self.name}' (available: {avail})")
-        return build_config(self._head(preset), self.defaults, self.presets.get(preset, {}) if preset else {}, *overrides)
+        return build_config(self._head(preset), self.derived()[0], self.defaults,
+                            self.presets.get(preset, {}) if preset else {}, *overrides)
+
+    def derived(self) -> tuple[dict, dict[str, str]]:
+        """The settings derived from the geometry and why (:func:`ginn.problems.derived.derived_defaults`);
+        nothing for problems without geometry."""
+        if self.geometry is None:
+            return {}, {}
+        if self._derived is None:
+            self._derived = derived_defaults(self.build())
+        return self._derived
+
+    def derived_notes(self, cfg: RunConfig) -> list[str]:
+        """``path = value  # why`` for each derived setting that ``cfg`` kept (not stated by the spec,
+        a preset or an override)."""
+        flat = _flatten(cfg.model_dump(mode="json"))
+        out = []
+        for path, value in _flatten(self.derived()[0]).items():
+            if flat.get(path) == value:
+                out.append(f"{path} = {value!r}" + (f"  ({self.derived()[1][path]})" if path in self.derived()[1] else ""))
+        return out
 
     def _head(self, preset: str | None) -> dict:
         return {"problem": self.name, "preset": preset, "params": {"kind": self.kind}}
@@ -155,12 +179,22 @@ class ProblemSpec(BaseModel):
             interfaces=faces,
             obstacles=obstacles,
             interface_band=float(g.interface_band),
-            unit_scale=float(g.unit_scale),
+            unit_scale=float(g.unit_scale) if g.unit_scale is not None else half_longest_side(domain),
             tolerances=Tolerances(**self.tolerances.model_dump()),
             description=self.description,
             reference=self.reference,
             extra={"kind": self.kind, "source": self._source},
         )
+
+
+def _flatten(d: dict, prefix: str = "") -> dict:
+    out = {}
+    for k, v in d.items():
+        if isinstance(v, dict):
+            out.update(_flatten(v, f"{prefix}{k}."))
+        else:
+            out[f"{prefix}{k}"] = v
+    return out
 
 
 def _fmt(t) -> str:

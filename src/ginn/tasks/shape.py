@@ -18,7 +18,7 @@ from torch import Tensor, nn
 
 from .. import fields
 from ..config import LossTerm, RunConfig, default_resolution
-from ..errors import ConfigError, GinnError
+from ..errors import ConfigError, GinnError, SpecError
 from ..eval.feasibility import FeasibilityCheck, verdict_text
 from ..eval.plateau import evaluate_plateau
 from ..eval.shapes import evaluate_shapes, format_table
@@ -29,7 +29,9 @@ from ..levelset import project_to_zero
 from ..losses import constraints as C
 from ..losses.diversity import aggregate, distance_matrix, diversity, diversity_nearest
 from ..models.factory import build_model
+from ..models.frame import DomainFrame
 from ..models.latents import fixed_latents, latent_dim, random_latents
+from ..problems.derived import length_scale
 from ..problems.problem import Problem
 from ..topology import ConnectednessLossBase, make_connectedness_loss
 from ..train.distributed import DistContext, cross_values_sharded
@@ -76,13 +78,27 @@ class ShapeTask(Task):
 
     @classmethod
     def from_spec(cls, spec, cfg: RunConfig) -> ShapeTask:
-        """The task of a shape spec: its geometry built (meshes loaded, interfaces checked)."""
-        return cls(spec.build(), cfg, cfg.device, cfg.torch_dtype)
+        """The task of a shape spec: its geometry built (meshes loaded, interfaces checked).
+
+        Raises:
+            SpecError: the problem has no interface (the shape would attach to nothing).
+        """
+        problem = spec.build()
+        if not problem.interfaces:
+            raise SpecError("spec field 'geometry.interfaces': a shape problem needs at least one interface "
+                            "(the shape has nothing to attach to)")
+        return cls(problem, cfg, cfg.device, cfg.torch_dtype)
 
     # --- Task API ----------------------------------------------------------------------------
 
     def build_model(self) -> nn.Module:
-        return build_model(self.cfg.model, self.d, latent_dim(self.cfg.latents))
+        """The field of ``cfg.model``; with ``model.frame: domain`` in the domain's frame
+        (:class:`ginn.models.frame.DomainFrame`)."""
+        model = build_model(self.cfg.model, self.d, latent_dim(self.cfg.latents))
+        if self.cfg.model.frame == "domain":
+            dom = self.problem.domain
+            model = DomainFrame(model, [0.5 * (a + b) for a, b in zip(dom.lo, dom.hi)], length_scale(self.problem))
+        return model
 
     def terms(self) -> dict[str, LossTerm]:
         L = self.cfg.losses
@@ -150,7 +166,9 @@ class ShapeTask(Task):
         if "design_region" in active and s.n_outside > 0:
             out["outside"] = sampling.sample_outside(p.design_region, p.domain, S * s.n_outside, gen, **kw).reshape(S, -1, d)
         if "obstacle" in active and s.n_obstacle > 0:
-            obs = [sampling.sample_inside(o, p.domain, S * s.n_obstacle // len(p.obstacles), gen, **kw) for o in p.obstacles]
+            # split among the obstacles per shape, so that every shape gets the same number
+            per = max(1, s.n_obstacle // len(p.obstacles))
+            obs = [sampling.sample_inside(o, p.domain, S * per, gen, **kw) for o in p.obstacles]
             out["obstacle"] = torch.cat([o.reshape(S, -1, d) for o in obs], dim=1)
         if p.interfaces and ({"interface", "normal"} & active):
             xi, ni = sampling.sample_interfaces(p.interfaces, S * s.n_interface, gen, **kw)

@@ -1,0 +1,99 @@
+"""The public problem suite: train every problem with the settings ginn chooses, and count feasible runs.
+
+    python benchmarks/suite.py                          # every problem, seed 0
+    python benchmarks/suite.py --seeds 0 1 2
+    python benchmarks/suite.py --only wheel-2d bridge-2d --out runs/suite
+    python benchmarks/suite.py --iterations 200          # a quick look (not the benchmark)
+
+The problems are ``benchmarks/suite/*.yaml``, written the way users write specs: geometry, the
+number of shapes and nothing about training, plus the built-in ``obstacle``, ``bracket`` and
+``plateau`` with their spec defaults (no preset). Each (problem, seed) is trained into ``--out``,
+evaluated like ``ginn eval`` (the problem's tolerances, ``docs/problem-spec.md``), and printed as
+one row: feasible shapes of all, the worst CD1 (the interface tolerance times ``unit_scale`` in
+brackets), the worst volume outside E, the diversity, and the wall time of training and
+evaluation. The last line is the share of (problem, seed) pairs that end with every shape feasible.
+A JSON copy of the table goes to ``OUT/suite.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+from ginn import runs
+
+HERE = Path(__file__).resolve().parent / "suite"
+BUILTIN = ["obstacle", "bracket", "plateau"]
+
+
+def problems() -> dict[str, str]:
+    """``{name: spec file or built-in name}`` of the whole suite."""
+    out = {p.stem: str(p) for p in sorted(HERE.glob("*.yaml"))}
+    out.update({name: name for name in BUILTIN})
+    return out
+
+
+def run_one(problem: str, seed: int, out: Path, iterations: int | None, threads: int, resolution: int | None) -> dict:
+    """Train and evaluate one (problem, seed); the row of the table as a dict."""
+    over: dict = {"seed": seed, "training": {"threads": threads}}
+    if iterations is not None:
+        over["training"]["iterations"] = iterations
+    spec, cfg = runs.resolve(problem, None, over)
+    t0 = time.perf_counter()
+    outcome = runs.train(spec, cfg, out, progress=False, results=False)
+    metrics = runs.evaluate(outcome.run_dir, resolution=resolution)
+    wall = time.perf_counter() - t0
+    feas = metrics["feasibility"]
+    worst = feas["worst"]
+    tol = outcome.task.problem.tolerances.interface * outcome.task.problem.unit_scale
+    return {"problem": spec.name, "seed": seed, "dim": outcome.task.problem.dim, "feasible": feas["feasible"],
+            "shapes": feas["shapes"], "worst_cd1": worst.get("interface_cd1"), "cd1_bound": tol,
+            "worst_volume_outside": worst.get("volume_outside"), "diversity_mean": metrics.get("diversity_mean"),
+            "minutes": wall / 60.0, "iterations": outcome.step}
+
+
+def _f(v, fmt: str = ".2e") -> str:
+    return "–" if v is None else format(v, fmt)
+
+
+def format_row(r: dict) -> str:
+    return (f"| {r['problem']} | {r['seed']} | {r['feasible']}/{r['shapes']} | {_f(r['worst_cd1'])} ({_f(r['cd1_bound'], '.0e')}) "
+            f"| {_f(r['worst_volume_outside'])} | {_f(r['diversity_mean'], '.3f')} | {r['minutes']:.1f} |")
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--seeds", nargs="+", type=int, default=[0])
+    p.add_argument("--only", nargs="+", help="problem names (default: all)")
+    p.add_argument("--out", default="runs/suite", help="where the run directories go (one per problem and seed)")
+    p.add_argument("--iterations", type=int, help="override the iteration budget (a quick look, not the benchmark)")
+    p.add_argument("--threads", type=int, default=2)
+    p.add_argument("--resolution", type=int, help="evaluation grid (default: that of ginn eval)")
+    args = p.parse_args(argv)
+    suite = problems()
+    names = args.only or list(suite)
+    unknown = [n for n in names if n not in suite]
+    if unknown:
+        print(f"--only: unknown problem(s) {', '.join(unknown)} (the suite: {', '.join(suite)})", file=sys.stderr)
+        return 2
+    out = Path(args.out)
+    print("| problem | seed | feasible | worst CD1 (bound) | worst vol outside E | diversity | minutes |")
+    print("|---|---|---|---|---|---|---|")
+    rows = []
+    for name in names:
+        for seed in args.seeds:
+            r = run_one(suite[name], seed, out / f"{name}-s{seed}", args.iterations, args.threads, args.resolution)
+            rows.append(r)
+            print(format_row(r), flush=True)
+    ok = sum(r["feasible"] == r["shapes"] for r in rows)
+    print(f"every shape feasible in {ok} of {len(rows)} (problem, seed) pairs ({100 * ok / max(len(rows), 1):.0f} %)")
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "suite.json").write_text(json.dumps(rows, indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,94 @@
+"""Run settings derived from a shape problem's geometry, for whatever its spec does not state.
+
+A spec written by a user holds geometry, tolerances and perhaps the number of shapes; everything
+else comes from here. The length scale is ``s`` = half the longest side of the domain. The network
+works in the domain's frame (``model.frame: domain``), so its settings do not depend on ``s``; each
+loss weight carries the power of ``s`` that makes its term's contribution independent of the
+problem's size (a field that is a distance scales like ``s``). At ``s = 1`` the values are the
+obstacle's ``quick`` preset, the configuration measured to make 16 of 16 obstacle shapes feasible
+(``docs/results.md``):
+
+==================  ==============================  =============================================
+setting             value                           why
+==================  ==============================  =============================================
+model               SIREN 4 x 64 (2D), 3 x 128      the widths of the obstacle (2D) and bracket
+                    (3D), omega_0^1 = 5             (3D) CPU presets
+model.frame         domain                          the network sees the domain as [-1, 1] along
+                                                    its longest side and returns distances in
+                                                    units of s (:mod:`ginn.models.frame`)
+interface           3000 / s^2                      mean f^2 on the interfaces scales as s^2
+design_region       300 / s                         mean |min(0, f - floor)| scales as s
+obstacle            1000 / s                        (``containment_power`` 1, ``slope`` 1)
+normal              10                              unit vectors: no scale
+eikonal             0.1                             |grad f| - 1: no scale
+connectedness       8 / s, margin 0.02 s            the mean penalised field value scales as s
+diversity           0.015 / s                       the aggregated shape distance scales as s
+iterations          4000 (2D), 3600 (3D)            learning rate halved every third of them
+points              2D: 1024 domain, 512 outside,   per shape and iteration
+                    64 obstacle, 128 interface,
+                    128 boundary; 3D: 2048, 1024,
+                    256, 1024, 256
+==================  ==============================  =============================================
+
+The built-in specs state every one of these settings themselves (their paper reproductions and
+tuned presets), so derived values reach only user specs and unset fields.
+"""
+
+from __future__ import annotations
+
+from ..geometry.base import Box
+from .problem import Problem
+
+__all__ = ["derived_defaults", "length_scale", "half_longest_side"]
+
+
+def half_longest_side(domain: Box) -> float:
+    """Half the longest side of the box ``domain``."""
+    return 0.5 * max(h - lo for lo, h in zip(domain.lo, domain.hi))
+
+
+def length_scale(problem: Problem) -> float:
+    """The problem's length scale ``s``: half the longest side of its domain."""
+    return half_longest_side(problem.domain)
+
+
+def derived_defaults(problem: Problem) -> tuple[dict, dict[str, str]]:
+    """A partial run configuration for ``problem`` and, for each setting, why (``{dotted.path: text}``)."""
+    s = length_scale(problem)
+    d = problem.dim
+    why: dict[str, str] = {}
+
+    def note(path: str, text: str):
+        why[path] = text
+
+    hidden = [64] * 4 if d == 2 else [128] * 3
+    model = {"kind": "siren", "hidden": hidden, "w0_first": 5.0, "w0_hidden": 1.0, "frame": "domain"}
+    note("model.frame", f"the network sees (x - c) / s and returns s times its output, s = {s:.4g}")
+    note("model.hidden", f"{len(hidden)} x {hidden[0]} for a {d}D problem")
+    losses = {
+        "interface": {"weight": 3000.0 / s**2},
+        "design_region": {"weight": 300.0 / s},
+        "obstacle": {"weight": 1000.0 / s},
+        "normal": {"weight": 10.0},
+        "eikonal": {"weight": 0.1},
+        "connectedness": {"weight": 8.0 / s},
+        "diversity": {"weight": 0.015 / s},
+        "containment_power": 1,
+        "containment_slope": 1.0,
+    }
+    for k, v in (("interface", "3000 / s^2"), ("design_region", "300 / s"), ("obstacle", "1000 / s"),
+                 ("connectedness", "8 / s"), ("diversity", "0.015 / s")):
+        note(f"losses.{k}.weight", f"{v}, s = {s:.4g}")
+    iterations = 4000 if d == 2 else 3600
+    training = {"iterations": iterations, "lr": 1e-3, "lr_decay": 0.5, "lr_decay_every": iterations // 3}
+    note("training.iterations", f"the {d}D budget")
+    if d == 2:
+        sampling = {"n_domain": 1024, "n_outside": 512, "n_obstacle": 64, "n_interface": 128, "n_boundary": 128}
+        conn = {"every": 5, "margin": 0.02 * s}
+    else:
+        sampling = {"n_domain": 2048, "n_outside": 1024, "n_obstacle": 256, "n_interface": 1024,
+                    "n_boundary": 256}
+        conn = {"every": 5, "grid": 10, "margin": 0.02 * s}
+    note("connectedness.margin", f"0.02 s, s = {s:.4g}")
+    out = {"model": model, "losses": losses, "sampling": sampling, "connectedness": conn, "training": training}
+    return out, why
