@@ -1,0 +1,45 @@
+"""benchmarks/suite.py: every problem trains with derived settings and is judged by its tolerances."""
+
+import importlib.util
+import json
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def suite():
+    spec = importlib.util.spec_from_file_location("suite", ROOT / "benchmarks" / "suite.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_the_suite_lists_its_problems_and_the_builtins(suite):
+    names = list(suite.problems())
+    assert len(names) >= 10 and {"obstacle", "bracket", "plateau", "wheel-2d", "clamp-3d"} <= set(names)
+
+
+def test_builtins_enter_as_users_would_write_them(suite):
+    from ginn.problems import load_spec
+
+    spec = suite.as_user_spec(load_spec("obstacle"))
+    assert spec.defaults == {"latents": {"n_shapes": 16}} and spec.presets == {}
+    cfg = spec.config()
+    assert cfg.model.frame == "domain" and cfg.losses.interface.weight == 3000.0  # derived, not the paper's 1.0
+
+
+def test_a_row_per_run_and_the_rate(suite, tmp_path, capsys):
+    assert suite.main(["--only", "hook-2d", "--iterations", "2", "--resolution", "32", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[2].startswith("| hook-2d | 0 | ") and out[-1].startswith("every shape feasible in ")
+    rows = json.loads((tmp_path / "suite.json").read_text())
+    assert rows[0]["problem"] == "hook-2d" and rows[0]["iterations"] == 2 and rows[0]["shapes"] == 1
+    assert rows[0]["cd1_bound"] == pytest.approx(0.005 * 0.7)  # unit_scale: half the longest side, 0.7
+
+
+def test_unknown_problem_is_one_line_and_exit_2(suite, capsys):
+    assert suite.main(["--only", "nope"]) == 2
+    assert capsys.readouterr().err.count("\n") == 1
