@@ -137,3 +137,17 @@ def test_a_problem_and_its_scaled_copy_train_alike():
         assert l10[term] == pytest.approx(l1[term] * 10.0**power, rel=2e-3, abs=1e-6), term
     for a, b in zip(w1, w10):
         torch.testing.assert_close(a, b, rtol=1e-3, atol=1e-5)
+
+
+@pytest.mark.parametrize("radius, expected", [(0.05, 10.0), (0.08, 6.25), (0.3, 5.0)])
+def test_first_layer_frequency_follows_the_smallest_interface(radius, expected):
+    """omega_0^1 = max(5, s / (2 r)) for a circle interface of radius r (s = 1 here)."""
+    from ginn.problems.derived import smallest_feature
+
+    spec = validate_spec({"name": "t", "geometry": {
+        "dim": 2, "domain": {"lo": [-1, -1], "hi": [1, 1]},
+        "interfaces": [{"type": "circle", "center": [0, 0], "radius": radius},
+                       {"type": "segment", "a": [-0.9, -0.9], "b": [0.9, -0.9]}]}})
+    assert smallest_feature(spec.build()) == pytest.approx(radius)
+    assert spec.config().model.w0_first == pytest.approx(expected)
+    assert f"a = {radius:.4g} the smallest interface" in " ".join(spec.derived_notes(spec.config()))

@@ -12,7 +12,10 @@ obstacle's ``quick`` preset, the configuration measured to make 16 of 16 obstacl
 setting             value                           why
 ==================  ==============================  =============================================
 model               SIREN 4 x 64 (2D), 3 x 128      the widths of the obstacle (2D) and bracket
-                    (3D), omega_0^1 = 5             (3D) CPU presets
+                    (3D)                            (3D) CPU presets
+model.w0_first      max(5, s / (2 a)), a the        an interface of size a needs about s / a
+                    smallest interface              oscillations per half domain; 5 (the
+                    (:func:`smallest_feature`)      obstacle's value) at least
 model.frame         domain                          the network sees the domain as [-1, 1] along
                                                     its longest side and returns distances in
                                                     units of s (:mod:`ginn.models.frame`)
@@ -39,7 +42,7 @@ from __future__ import annotations
 from ..geometry.base import Box
 from .problem import Problem
 
-__all__ = ["derived_defaults", "length_scale", "half_longest_side"]
+__all__ = ["derived_defaults", "length_scale", "half_longest_side", "smallest_feature"]
 
 
 def half_longest_side(domain: Box) -> float:
@@ -52,6 +55,19 @@ def length_scale(problem: Problem) -> float:
     return half_longest_side(problem.domain)
 
 
+def smallest_feature(problem: Problem) -> float:
+    """The size of the smallest interface, in the problem's units: the least half of the longest
+    side of each interface's bounding box (a circle's radius, half a segment's length); the shape's
+    boundary must follow the interfaces, while it only has to keep clear of obstacles.
+    ``length_scale`` without interfaces."""
+    sizes = []
+    for itf in problem.interfaces:
+        b = itf.bounds()
+        if b is not None and float((b[1] - b[0]).max()) > 0:
+            sizes.append(0.5 * float((b[1] - b[0]).max()))
+    return min(sizes) if sizes else length_scale(problem)
+
+
 def derived_defaults(problem: Problem) -> tuple[dict, dict[str, str]]:
     """A partial run configuration for ``problem`` and, for each setting, why (``{dotted.path: text}``)."""
     s = length_scale(problem)
@@ -62,8 +78,11 @@ def derived_defaults(problem: Problem) -> tuple[dict, dict[str, str]]:
         why[path] = text
 
     hidden = [64] * 4 if d == 2 else [128] * 3
-    model = {"kind": "siren", "hidden": hidden, "w0_first": 5.0, "w0_hidden": 1.0, "frame": "domain"}
+    feature = smallest_feature(problem)
+    w0 = max(5.0, 0.5 * s / feature)
+    model = {"kind": "siren", "hidden": hidden, "w0_first": w0, "w0_hidden": 1.0, "frame": "domain"}
     note("model.frame", f"the network sees (x - c) / s and returns s times its output, s = {s:.4g}")
+    note("model.w0_first", f"max(5, s / (2 a)), a = {feature:.4g} the smallest interface")
     note("model.hidden", f"{len(hidden)} x {hidden[0]} for a {d}D problem")
     losses = {
         "interface": {"weight": 3000.0 / s**2},
