@@ -63,6 +63,9 @@ CASES = {
     "duplicate spec key": (lambda r, t: (t / "dup.yaml").write_text(
         "name: a\nname: b\ngeometry: {dim: 2, domain: {lo: [0, 0], hi: [1, 1]}}\n") and ["train", t / "dup.yaml"],
         "duplicate key 'name'"),
+    "name read as a boolean": (lambda r, t: (t / "b.yaml").write_text(
+        "name: off\ngeometry: {dim: 2, domain: {lo: [0, 0], hi: [1, 1]}}\n") and ["train", t / "b.yaml"],
+        "spec field 'name': must be text; YAML read it as False: put the name in quotes"),
     "negative tolerance": (lambda r, t: (t / "tol.yaml").write_text(
         "name: a\ngeometry: {dim: 2, domain: {lo: [0, 0], hi: [1, 1]}}\ntolerances: {interface: -1}\n")
         and ["train", t / "tol.yaml"], "tolerances.interface"),

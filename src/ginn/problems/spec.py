@@ -87,6 +87,14 @@ class ProblemSpec(BaseModel):
     _source: str = PrivateAttr(default="")
     _derived: tuple | None = PrivateAttr(default=None)
 
+    @field_validator("name", mode="before")
+    @classmethod
+    def _name_is_text(cls, v):
+        # YAML reads off, no, yes, 1e3 ... as booleans and numbers
+        if not isinstance(v, str):
+            raise ValueError(f"must be text; YAML read it as {v!r}: put the name in quotes")
+        return v
+
     @field_validator("geometry")
     @classmethod
     def _needs_geometry(cls, v, info: ValidationInfo):
