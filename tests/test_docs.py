@@ -108,3 +108,16 @@ def test_no_lab_notebook(where):
             if m:
                 bad.append(f"{f.relative_to(ROOT)}:{i}: {m.group(0)!r} in {line.strip()[:100]}")
     assert not bad, "\n".join(bad)
+
+
+def test_the_guide_to_your_own_problem_shows_a_valid_spec():
+    """The spec in docs/your-own-problem.md loads, builds and has the suite's geometry."""
+    from ginn.problems import load_spec
+    from ginn.problems.loader import parse_spec
+
+    text = (ROOT / "docs" / "your-own-problem.md").read_text()
+    block = text.split("```yaml\n", 1)[1].split("```", 1)[0]
+    spec = parse_spec(block)
+    p, ref = spec.build(), load_spec(ROOT / "benchmarks" / "suite" / "l-bracket-2d.yaml").build()
+    assert p.n_interface_components == ref.n_interface_components == 3 and p.unit_scale == ref.unit_scale == 10.0
+    assert spec.config().latents.n_shapes == 4 and p.tolerances.interface * p.unit_scale == 0.05
