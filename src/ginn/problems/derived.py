@@ -5,8 +5,9 @@ else comes from here. The length scale is ``s`` = half the longest side of the d
 works in the domain's frame (``model.frame: domain``), so its settings do not depend on ``s``; each
 loss weight carries the power of ``s`` that makes its term's contribution independent of the
 problem's size (a field that is a distance scales like ``s``). At ``s = 1`` the values are the
-obstacle's ``quick`` preset, the configuration measured to make 16 of 16 obstacle shapes feasible
-(``docs/results.md``):
+obstacle's ``quick`` preset without its ``latent_scale`` (1.45), the configuration measured to make
+16 of 16 obstacle shapes feasible; with ``latent_scale`` 1 the obstacle reaches 12 of 16
+(``docs/results.md``, "Problem suite"):
 
 ==================  ==============================  =============================================
 setting             value                           why
