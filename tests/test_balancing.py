@@ -40,14 +40,14 @@ def test_active_constraint_reaches_the_kkt_point_whatever_the_scale(scale):
 
 def test_objectives_keep_their_weights_and_state_round_trips():
     terms = {"eikonal": LossTerm(weight=0.1), "interface": LossTerm(weight=3.0)}
-    b = AdaptiveMultipliers(terms, BalancingConfig(method="adaptive"), {"interface": 1e-4})
+    b = AdaptiveMultipliers(terms, {"interface": 1e-4})
     for it in range(50):
         b.observe({"eikonal": 1.0, "interface": 1e-2}, it)
     assert b.multipliers()["eikonal"] == 0.1 and b.is_objective("eikonal") and not b.is_objective("interface")
     # violated 100-fold: every step multiplies by (1 + step * tanh(log 100)), about 1.01
     assert b.lam["interface"] == pytest.approx(3.0 * (1 + 0.01 * math.tanh(math.log(1e-2 / (1e-4 * 1.001)))) ** 50,
                                                rel=1e-3)
-    c = AdaptiveMultipliers(terms, BalancingConfig(method="adaptive"), {"interface": 1e-4})
+    c = AdaptiveMultipliers(terms, {"interface": 1e-4})
     c.load_state_dict(b.state_dict())
     for it in range(5):
         for m in (b, c):

@@ -73,7 +73,7 @@ CASES = {
                                                  "connectedness.grid=32"]),
     "augmented Lagrangian": ("obstacle", "demo", [*OBSTACLE, "balancing.method=augmented-lagrangian",
                                                   "balancing.update_every=4", "balancing.mu_growth=2"]),
-    "adaptive multipliers": ("obstacle", "demo", [*OBSTACLE, "balancing.method=adaptive", "balancing.step=0.2"]),
+    "adaptive multipliers": ("obstacle", "demo", [*OBSTACLE, "balancing.method=adaptive"]),
     "feasibility checks": ("obstacle", "demo", [*OBSTACLE, "training.stop_when_feasible=true",
                                                 "training.feasibility_checks=12"]),
     "mirror": ("mirror", None, ["training.threads=1", "params.n_samples=64"]),

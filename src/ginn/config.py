@@ -197,10 +197,6 @@ class BalancingConfig(_Strict):
     mu_max: float = Field(1e4, gt=0, description="upper bound of the penalty parameter")
     update_every: int = Field(100, ge=1, description="iterations between multiplier updates")
     lambda_lr: float = Field(1.0, gt=0, description="step size of the multiplier update")
-    step: float = Field(0.01, gt=0, le=0.5, description="adaptive: largest relative change of a multiplier per iteration")
-    average: float = Field(0.99, ge=0, lt=1, description="adaptive: factor of the running average of each constraint term")
-    floor: float = Field(1e-2, gt=0, description="adaptive: below this a multiplier moves by absolute steps (so it can reach 0)")
-    multiplier_max: float = Field(1e8, gt=0, description="adaptive: upper bound of a multiplier")
 
 
 class TrainingConfig(_Strict):

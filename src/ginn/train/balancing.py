@@ -23,10 +23,10 @@ tolerances) and the objective is ``sum_obj w_j l_j + sum_con lambda_i l_i``, the
 multiplier by a relative step::
 
     r_i = tanh(log((m_i + t_i) / (eps_i + t_i)))        in (-1, 1); t_i = 1e-3 eps_i + 1e-30
-    lambda_i <- clip(lambda_i + step * max(lambda_i, floor) * r_i, 0, multiplier_max)
+    lambda_i <- clip(lambda_i + 0.01 * max(lambda_i, 0.01) * r_i, 0, 1e8)     (average 0.99)
 
-so a violated constraint's multiplier grows by up to ``step`` of itself per iteration, a satisfied
-one shrinks, and an inactive one reaches 0 (below ``floor`` the steps are absolute). Relative steps
+so a violated constraint's multiplier grows by up to 1 % of itself per iteration, a satisfied
+one shrinks, and an inactive one reaches 0 (below 0.01 the steps are absolute). Relative steps
 make the update free of units: the same settings find multipliers of 1e-1 or 1e4, whatever the
 scale of the term. A term without a target is an objective with its configured weight.
 """
@@ -132,15 +132,23 @@ class AdaptiveMultipliers(WeightedSum):
 
     Arguments:
         terms: every loss term (the weights start the multipliers and weigh the objectives).
-        cfg: ``step``, ``average``, ``floor``, ``multiplier_max``.
         targets: ``{term: eps}`` for the constraint terms (others are objectives).
+
+    The update's constants are the class attributes ``STEP`` (largest relative change of a
+    multiplier per iteration), ``AVERAGE`` (factor of the running averages), ``FLOOR`` (below it
+    a multiplier moves by absolute steps, so it can reach 0) and ``MAX``; they do not depend on
+    the problem (the steps are relative), so they are not settings.
     """
 
-    def __init__(self, terms: dict[str, LossTerm], cfg: BalancingConfig, targets: dict[str, float]):
-        self.cfg = cfg
+    STEP = 0.01
+    AVERAGE = 0.99
+    FLOOR = 1e-2
+    MAX = 1e8
+
+    def __init__(self, terms: dict[str, LossTerm], targets: dict[str, float]):
         self.targets = {k: float(v) for k, v in targets.items() if k in terms}
         super().__init__(terms, [k for k in terms if k not in self.targets])
-        self.lam = {k: max(self.weights[k], cfg.floor) for k in self.targets}
+        self.lam = {k: max(self.weights[k], self.FLOOR) for k in self.targets}
         self.avg = {k: 0.0 for k in self.targets}  # exponential averages, not bias-corrected
         self.seen = {k: 0 for k in self.targets}  # updates of each average
 
@@ -158,10 +166,10 @@ class AdaptiveMultipliers(WeightedSum):
     def running(self, k: str) -> float:
         """The bias-corrected running average of constraint ``k``."""
         n = self.seen[k]
-        return self.avg[k] / (1.0 - self.cfg.average ** n) if n else 0.0
+        return self.avg[k] / (1.0 - self.AVERAGE ** n) if n else 0.0
 
     def observe(self, losses: dict[str, float], step: int) -> None:
-        beta, c = self.cfg.average, self.cfg
+        beta = self.AVERAGE
         for k, v in losses.items():
             if k not in self.lam or not math.isfinite(v):
                 continue
@@ -170,8 +178,8 @@ class AdaptiveMultipliers(WeightedSum):
             eps = self.targets[k]
             tiny = 1e-3 * eps + 1e-30
             r = math.tanh(math.log((max(self.running(k), 0.0) + tiny) / (eps + tiny)))
-            lam = self.lam[k] + c.step * max(self.lam[k], c.floor) * r
-            self.lam[k] = min(max(lam, 0.0), c.multiplier_max)
+            lam = self.lam[k] + self.STEP * max(self.lam[k], self.FLOOR) * r
+            self.lam[k] = min(max(lam, 0.0), self.MAX)
 
     def multipliers(self) -> dict[str, float]:
         out = {k: w for k, w in self.weights.items() if k not in self.lam}
@@ -192,7 +200,7 @@ def make_balancer(terms: dict[str, LossTerm], cfg: BalancingConfig, targets: dic
     if cfg.method == "weighted":
         return WeightedSum(terms, cfg.objectives)
     if cfg.method == "adaptive":
-        return AdaptiveMultipliers(terms, cfg, targets or {})
+        return AdaptiveMultipliers(terms, targets or {})
     return AugmentedLagrangian(terms, cfg)
 
 
