@@ -8,6 +8,7 @@ import torch
 import yaml
 
 from ginn import runs
+from ginn.config import flattened
 from ginn.problems import load_spec, validate_spec
 from ginn.problems.derived import derived_defaults, length_scale
 
@@ -74,18 +75,8 @@ def test_builtin_specs_state_every_derived_setting():
         assert spec.config().model.frame == "raw"
         kept = {n.split(" = ")[0] for n in notes}
         # a derived value may coincide with the stated one; what matters is that none is taken from derived alone
-        stated = _stated(spec.defaults)
+        stated = set(flattened(spec.defaults))
         assert kept - stated - allowed == set(), (name, sorted(kept - stated - allowed))
-
-
-def _stated(d: dict, prefix: str = "") -> set[str]:
-    out = set()
-    for k, v in d.items():
-        if isinstance(v, dict):
-            out |= _stated(v, f"{prefix}{k}.")
-        else:
-            out.add(f"{prefix}{k}")
-    return out
 
 
 @pytest.mark.parametrize("path", SUITE, ids=[p.stem for p in SUITE])

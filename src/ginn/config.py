@@ -395,6 +395,17 @@ def deep_merge(base: dict, over: dict) -> dict:
     return out
 
 
+def flattened(tree: dict, prefix: str = "") -> dict[str, Any]:
+    """``{"a": {"b": 1}}`` -> ``{"a.b": 1}`` (the inverse of :func:`nested`)."""
+    out: dict[str, Any] = {}
+    for k, v in tree.items():
+        if isinstance(v, dict):
+            out.update(flattened(v, f"{prefix}{k}."))
+        else:
+            out[f"{prefix}{k}"] = v
+    return out
+
+
 def nested(flat: dict[str, Any]) -> dict:
     """``{"a.b": 1}`` -> ``{"a": {"b": 1}}``."""
     out: dict = {}

@@ -17,7 +17,7 @@ from typing import Annotated, Any, Literal
 import torch
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError, ValidationInfo, field_validator, model_validator
 
-from ..config import TASK_KINDS, RunConfig, build_config
+from ..config import TASK_KINDS, RunConfig, build_config, flattened
 from ..errors import ConfigError, SpecError, field_message, field_path
 from ..geometry import csg
 from ..geometry.base import Box
@@ -135,14 +135,12 @@ class ProblemSpec(BaseModel):
         return self._derived
 
     def derived_notes(self, cfg: RunConfig) -> list[str]:
-        """``path = value  # why`` for each derived setting that ``cfg`` kept (not stated by the spec,
-        a preset or an override)."""
-        flat = _flatten(cfg.model_dump(mode="json"))
-        out = []
-        for path, value in _flatten(self.derived()[0]).items():
-            if flat.get(path) == value:
-                out.append(f"{path} = {value!r}" + (f"  ({self.derived()[1][path]})" if path in self.derived()[1] else ""))
-        return out
+        """``path = value  (why)`` for each derived setting whose value ``cfg`` holds (one that the
+        spec, a preset or an override changed is left out)."""
+        values, why = self.derived()
+        flat = flattened(cfg.model_dump(mode="json"))
+        return [f"{path} = {value!r}" + (f"  ({why[path]})" if path in why else "")
+                for path, value in flattened(values).items() if flat.get(path) == value]
 
     def _head(self, preset: str | None) -> dict:
         return {"problem": self.name, "preset": preset, "params": {"kind": self.kind}}
@@ -193,16 +191,6 @@ class ProblemSpec(BaseModel):
             reference=self.reference,
             extra={"kind": self.kind, "source": self._source},
         )
-
-
-def _flatten(d: dict, prefix: str = "") -> dict:
-    out = {}
-    for k, v in d.items():
-        if isinstance(v, dict):
-            out.update(_flatten(v, f"{prefix}{k}."))
-        else:
-            out[f"{prefix}{k}"] = v
-    return out
 
 
 def _fmt(t) -> str:

@@ -381,9 +381,13 @@ class ShapeTask(Task):
     def feasibility(self, model: nn.Module) -> dict | None:
         """The problem's tolerances checked on a coarse grid (``RESOLUTION['check']``), with the
         definitions of ``ginn eval`` (:class:`ginn.eval.feasibility.FeasibilityCheck`)."""
+        return self._checker()(model, self.Z)
+
+    def _checker(self) -> FeasibilityCheck:
+        """The coarse-grid check, its metric context built once per task."""
         if self._check is None:
             self._check = FeasibilityCheck(self.problem, default_resolution("check", self.d), seed=self.cfg.seed)
-        return self._check(model, self.Z)
+        return self._check
 
     def evaluate(self, model: nn.Module, resolution: int | None = None, out_dir: Path | None = None) -> dict:
         """The Appendix B.1 metrics of every shape (:func:`ginn.eval.shapes.evaluate_shapes`), and the
@@ -428,7 +432,7 @@ class ShapeTask(Task):
             return export_shapes(model, Z, self.problem.domain, out_dir, resolution, mesh_format=mesh_format)
         paths = export_shapes(model, Z, self.problem.domain, out_dir, resolution,
                               contour_formats=[f for f in CONTOUR_FORMATS if f != "png"])
-        summary = FeasibilityCheck(self.problem, default_resolution("check", self.d), seed=self.cfg.seed)(model, Z)
+        summary = self._checker()(model, Z)
         codes = [None] if Z is None else [Z[i] for i in range(Z.shape[0])]
         for i, (z, violated) in enumerate(zip(codes, summary["violations"])):
             boundary, _, _ = shape_boundary(model, z, self.problem.domain, resolution)
