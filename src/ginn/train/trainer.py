@@ -25,6 +25,7 @@ import math
 import signal
 import sys
 import time
+from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -489,8 +490,4 @@ class Trainer:
 
 def _violated_counts(summary: dict) -> dict[str, int]:
     """How many shapes violate each constraint."""
-    out: dict[str, int] = {}
-    for v in summary["violations"]:
-        for name in v:
-            out[name] = out.get(name, 0) + 1
-    return out
+    return dict(Counter(name for v in summary["violations"] for name in v))
