@@ -70,7 +70,7 @@ class ModelConfig(_Strict):
     frame: Literal["raw", "domain"] = Field(
         "raw", description="shape problems: raw feeds the points as they are; domain feeds (x - c) / s and returns "
         "s times the output (c the domain's centre, s half its longest side), so that a problem of any size looks "
-        "the same to the network")
+        "the same to the network; shape specs get domain from the settings derived from their geometry")
 
     @field_validator("hidden")
     @classmethod
