@@ -153,3 +153,40 @@ def test_shape_pictures_show_the_problem_and_the_verdict(tmp_path):
     empty = save_shape_figure([], task.problem, tmp_path / "empty.png", "feasible")
     rgb = (matplotlib.image.imread(empty)[..., :3] * 255).round()
     assert (np.abs(rgb - 217).max(axis=-1) < 2).sum() > 100
+
+
+class ScriptedVerdicts(CircleFit):
+    """Feasible counts from a script, one per check; records the weights at each check."""
+
+    def __init__(self, cfg, script):
+        super().__init__(cfg)
+        self.script, self.seen = list(script), []
+
+    def feasibility(self, model):
+        k = self.script[len(self.seen)]
+        self.seen.append(torch.cat([p.detach().flatten().clone() for p in model.parameters()]))
+        return {"feasible": k, "shapes": 4, "violations": [{}] * k + [{"interface": {}}] * (4 - k), "worst": {}}
+
+
+@pytest.mark.parametrize("keep", [True, False])
+def test_run_ends_with_the_weights_of_the_most_feasible_check(tmp_path, keep):
+    c = build_config({"seed": 0, "training": {"iterations": 50, "lr": 1e-2, "feasibility_checks": 5,
+                                              "keep_most_feasible": keep}})
+    task = ScriptedVerdicts(c, [1, 3, 3, 2, 1])
+    tr = Trainer(task, c, tmp_path, progress=False)
+    tr.train()
+    final = torch.cat([p.detach().flatten() for p in tr.model.parameters()])
+    events = [json.loads(x) for x in (tmp_path / "metrics.jsonl").read_text().splitlines()]
+    restored = [e for e in events if e.get("event") == "restored"]
+    if keep:  # the later of the two checks with 3 feasible shapes (iteration 30)
+        assert torch.equal(final, task.seen[2]) and tr.feasibility["feasible"] == 3
+        assert restored == [{"step": 50, "event": "restored", "from_step": 30, "feasible": 3, "shapes": 4, "instead_of": 1}]
+    else:
+        assert torch.equal(final, task.seen[4]) and not restored
+    # nothing to restore when the last check is the best
+    c2 = build_config({"seed": 0, "training": {"iterations": 20, "lr": 1e-2, "feasibility_checks": 2}})
+    t2 = ScriptedVerdicts(c2, [1, 2])
+    tr2 = Trainer(t2, c2, None, progress=False)
+    tr2.train()
+    assert torch.equal(torch.cat([p.detach().flatten() for p in tr2.model.parameters()]), t2.seen[1])
+    assert tr2.restored is None

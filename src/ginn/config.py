@@ -227,6 +227,9 @@ class TrainingConfig(_Strict):
     stop_when_feasible: bool = Field(
         False, description="end the run at a feasibility check that finds every shape feasible while the objective "
         "terms improved by less than 1 % since the previous check")
+    keep_most_feasible: bool = Field(
+        True, description="shape problems: end the run with the weights of the feasibility check that found the most "
+        "feasible shapes (the latest of equals) when the last check found fewer; logged as a 'restored' event")
 
 
 

@@ -105,6 +105,10 @@ def _finish(trainer: Trainer, task: Task, run_dir: Path, results: bool, say: Say
     if not trainer.is_main or res.status != "completed":  # ranks > 0 write nothing; interrupted or stopped
         return out
     say(f"trained {res.step} iterations in {res.seconds:.1f} s" + (f" ({res.reason})" if res.reason else ""))
+    if trainer.restored is not None:
+        r = trainer.restored
+        say(f"kept the weights of iteration {r['from_step']}: {r['feasible']} of {r['shapes']} shapes feasible there, "
+            f"{r['instead_of']} at the end (training.keep_most_feasible)")
     if trainer.feasibility is not None:
         say(f"{format_feasibility(trainer.feasibility)}\n(checked on a coarse grid; `ginn eval` for every metric)")
     if results:

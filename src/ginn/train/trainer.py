@@ -192,6 +192,8 @@ class Trainer:
         self.feasibility: dict | None = None  # the last feasibility check's summary
         self._objective = [0.0, 0]  # sum and count of the objective terms since the last check
         self._objective_before: float | None = None  # their mean over the interval before
+        self.best: dict | None = None  # the check with the most feasible shapes: step, summary, weights
+        self.restored: dict | None = None  # the 'restored' event, when the run ended with the best weights
 
     # --- checkpoints -------------------------------------------------------------------------
 
@@ -215,7 +217,7 @@ class Trainer:
             "task": self.task.state_dict(),
             "rng": rng_state(self.gen),
             "feasibility": {"last": self.feasibility, "objective": list(self._objective),
-                            "objective_before": self._objective_before},
+                            "objective_before": self._objective_before, "best": self.best},
         }
         if self.dist is not None:
             state["ranks"] = self.dist.gather_objects({"task": self.task.state_dict(), "rng": rng_state(self.gen)})
@@ -242,6 +244,7 @@ class Trainer:
         self.feasibility = feas.get("last")
         self._objective = list(feas.get("objective", [0.0, 0]))
         self._objective_before = feas.get("objective_before")
+        self.best = feas.get("best")
         self._saved_at = self.elapsed
         self._apply_lr_scale()
 
@@ -351,6 +354,9 @@ class Trainer:
         if summary is None:
             return None
         self.feasibility = summary
+        if self.cfg.training.keep_most_feasible and (self.best is None or summary["feasible"] >= self.best["summary"]["feasible"]):
+            weights = {k: v.detach().clone() for k, v in self.model.state_dict().items()}
+            self.best = {"step": self.step, "summary": summary, "model": weights}
         self._log({"step": self.step, "event": "feasibility", "feasible": summary["feasible"],
                    "shapes": summary["shapes"], "worst": summary["worst"],
                    "violated": _violated_counts(summary)})
@@ -362,6 +368,19 @@ class Trainer:
                 and abs(before - mean) <= 0.01 * max(abs(before), abs(mean), 1e-12)):
             raise StopRun("completed", f"every shape feasible and the objectives steady at iteration {self.step}")
         return summary
+
+    def _restore_most_feasible(self) -> None:
+        """``training.keep_most_feasible``: load the weights of the check with the most feasible
+        shapes when the last check (at the end of the run) found fewer."""
+        best, last = self.best, self.feasibility
+        if best is None or last is None or best["summary"]["feasible"] <= last["feasible"]:
+            return
+        self.model.load_state_dict(best["model"])
+        self.feasibility = best["summary"]
+        self.restored = {"step": self.step, "event": "restored", "from_step": best["step"],
+                         "feasible": best["summary"]["feasible"], "shapes": best["summary"]["shapes"],
+                         "instead_of": last["feasible"]}
+        self._log(self.restored)
 
     def _track_objective(self, values: dict[str, float], active: set[str]) -> None:
         weights = self.balancer.multipliers()
@@ -469,6 +488,8 @@ class Trainer:
                         break
             if bar is not None:
                 bar.close()
+            if status == "completed":
+                self._restore_most_feasible()
             self.save()
             if status == "interrupted":
                 self._log({"step": self.step, "event": "interrupted", "signal": flag.signum})
