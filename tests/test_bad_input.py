@@ -3,6 +3,7 @@ file or path, and exit status 2, never a traceback."""
 
 import contextlib
 import os
+import random
 import shutil
 import subprocess
 from pathlib import Path
@@ -88,7 +89,8 @@ def _empty_ckpt(run: Path) -> list:
 
 
 def _random_ckpt(run: Path) -> list:
-    (run / "checkpoints" / "last.pt").write_bytes(os.urandom(4096))
+    # fixed bytes: some random streams start with a valid pickle opcode sequence (a STOP byte first)
+    (run / "checkpoints" / "last.pt").write_bytes(random.Random(0).randbytes(4096))
     return ["resume", run, "--iterations", "9"]
 
 
