@@ -17,7 +17,7 @@ from pathlib import Path
 
 from pydantic import BaseModel
 
-from ginn.config import TASK_KINDS, TASK_PARAMS, RunConfig
+from ginn.config import RETIRED, TASK_KINDS, TASK_PARAMS, RunConfig
 
 OUT = Path(__file__).resolve().parents[1] / "docs" / "config.md"
 
@@ -122,6 +122,11 @@ def render() -> str:
         rows = _table(model, "params.", skip={"kind"})
         if len(rows) > 2:
             out += [*rows, ""]
+    out += ["## Retired settings", "",
+            "Removed settings. A configuration that names one at the value that made it do nothing still "
+            "loads (run directories written by earlier versions keep resuming); any other value is refused with the reason.", "",
+            "| key | inert value | what replaces it, and why |", "|---|---|---|",
+            *(f"| `{k}` | `{v}` | {why.replace('|', chr(92) + '|')} |" for k, (v, why) in RETIRED.items()), ""]
     return "\n".join(out).rstrip() + "\n"
 
 

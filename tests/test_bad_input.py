@@ -80,6 +80,12 @@ CASES = {
     "corrupt config.yaml": (lambda r, t: _corrupt_config(_copy(r, t / "r")), "config.yaml: YAML syntax error"),
     "invalid config.yaml": (lambda r, t: _invalid_config(_copy(r, t / "r")), "config.yaml: config field 'training.lr'"),
     "missing run": (lambda r, t: ["status", t / "nope"], "not a ginn run directory"),
+    "retired setting in --set": (lambda r, t: ["train", "obstacle", "--set", "losses.containment_margin=0.05"],
+                                 "config field 'losses.containment_margin' was retired: the containment floor starts"),
+    "retired setting in a spec": (lambda r, t: (t / "old.yaml").write_text(
+        "name: a\ngeometry: {dim: 2, domain: {lo: [0, 0], hi: [1, 1]}, interfaces: [{type: segment, a: [0, 0], b: [1, 0]}]}\n"
+        "defaults: {diversity: {interface_clearance: 0.05}}\n") and ["train", t / "old.yaml"],
+        "spec field 'defaults.diversity.interface_clearance' was retired: the diversity measures the whole boundary"),
 }
 
 

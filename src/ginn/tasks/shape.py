@@ -213,13 +213,6 @@ class ShapeTask(Task):
         if "design_region" in active and "outside" in part_f:
             E = self.problem.design_region
             fo = part_f["outside"].reshape(-1) - self._containment_floor(pts["outside"], E, 1.0)
-            if self.cfg.sampling.band_containment and "band" in part_f:
-                # band points outside E join the outside samples: a denser estimate near the
-                # interfaces on dE (the mean is then no longer a uniform estimate over X \ E)
-                xb = pts["band"].reshape(-1, self.d)
-                out_b = ~E.contains(xb)
-                fb = part_f["band"].reshape(-1)[out_b] - self._containment_floor(xb[out_b], E, 1.0)
-                fo = torch.cat([fo, fb])
             out["design_region"] = self.design_loss(fo)
         if "obstacle" in active and "obstacle" in part_f:
             fo = part_f["obstacle"].reshape(-1)
@@ -251,15 +244,14 @@ class ShapeTask(Task):
         forbidden set: outside E (``sign = 1``: the design region's SDF) or into an obstacle
         (``sign = -1``: minus the obstacle's SDF, the largest over the obstacles). A signed distance
         field of any shape inside E is at least this distance there, so the floor is exact for
-        ``slope = 1``; returns 0 (the paper's loss) when the slope is 0. ``losses.containment_margin``
-        is subtracted from the distance (clamped at 0)."""
-        slope, margin = self.cfg.losses.containment_slope, self.cfg.losses.containment_margin
+        ``slope = 1``; returns 0 (the paper's loss) when the slope is 0."""
+        slope = self.cfg.losses.containment_slope
         if slope == 0:
             return 0.0
         flat = x.reshape(-1, self.d)
         regions = regions if isinstance(regions, (list, tuple)) else [regions]
         depth = torch.stack([sign * r.sdf(flat) for r in regions]).amax(dim=0)
-        return slope * (depth - margin).clamp_min(0.0).detach()
+        return slope * depth.clamp_min(0.0).detach()
 
     def _corner_values(self, model: nn.Module, Z: Tensor | None) -> Tensor:
         c = self.corners
@@ -310,9 +302,6 @@ class ShapeTask(Task):
                 out["strain"] = self.strain_loss(gh[keep], hh[keep])
         if "diversity" in active and Z is not None:
             dv = self.cfg.diversity
-            if dv.interface_clearance > 0:
-                away = self._away_from_interfaces(xb.reshape(-1, d), dv.interface_clearance)
-                mask = mask & away.reshape(S, m)
             if self.dist is not None:  # all shapes' cross values, exact gradients
                 V, M = cross_values_sharded(model, xb, Z, mask, self.dist)
                 out["diversity"] = -aggregate(distance_matrix(V, M, dv.eps), dv.aggregation, dv.p)
