@@ -51,12 +51,16 @@ class WeightedSum:
     def is_objective(self, term: str) -> bool:
         return term in self.objectives
 
+    def weight(self, term: str) -> float:
+        """The factor of ``term`` in the combined loss now."""
+        return self.weights.get(term, 0.0)
+
     def combine(self, losses: dict[str, Tensor], step: int) -> Tensor:
         total = None
         for k, v in losses.items():
             if k.startswith("_"):
                 continue
-            t = self.weights.get(k, 0.0) * v
+            t = self.weight(k) * v
             total = t if total is None else total + t
         if total is None:
             raise ValueError("no active loss term")
@@ -152,16 +156,8 @@ class AdaptiveMultipliers(WeightedSum):
         self.avg = {k: 0.0 for k in self.targets}  # exponential averages, not bias-corrected
         self.seen = {k: 0 for k in self.targets}  # updates of each average
 
-    def combine(self, losses: dict[str, Tensor], step: int) -> Tensor:
-        total = None
-        for k, v in losses.items():
-            if k.startswith("_"):
-                continue
-            t = (self.lam[k] if k in self.lam else self.weights.get(k, 0.0)) * v
-            total = t if total is None else total + t
-        if total is None:
-            raise ValueError("no active loss term")
-        return total
+    def weight(self, term: str) -> float:
+        return self.lam[term] if term in self.lam else self.weights.get(term, 0.0)
 
     def running(self, k: str) -> float:
         """The bias-corrected running average of constraint ``k``."""
