@@ -4,6 +4,7 @@
     python benchmarks/suite.py --seeds 0 1 2
     python benchmarks/suite.py --only wheel-2d bridge-2d --out runs/suite
     python benchmarks/suite.py --iterations 200          # a quick look (not the benchmark)
+    python benchmarks/suite.py --set training.lr_decay=0.1  # a candidate default, on every problem
 
 The problems are ``benchmarks/suite/*.yaml``, written the way users write specs: geometry, the
 number of shapes and nothing about training, plus the geometry of the built-in ``obstacle``,
@@ -25,6 +26,8 @@ import time
 from pathlib import Path
 
 from ginn import runs
+from ginn.config import deep_merge, parse_set
+from ginn.errors import GinnError
 from ginn.problems import ProblemSpec, load_spec
 
 HERE = Path(__file__).resolve().parent / "suite"
@@ -44,11 +47,14 @@ def as_user_spec(spec: ProblemSpec) -> ProblemSpec:
     return spec.model_copy(update={"defaults": {"latents": {"n_shapes": n}}, "presets": {}})
 
 
-def run_one(problem: str, seed: int, out: Path, iterations: int | None, threads: int, resolution: int | None) -> dict:
+def run_one(problem: str, seed: int, out: Path, iterations: int | None, threads: int, resolution: int | None,
+            sets: dict | None = None) -> dict:
     """Train and evaluate one (problem, seed); the row of the table as a dict."""
     over: dict = {"seed": seed, "training": {"threads": threads}}
     if iterations is not None:
         over["training"]["iterations"] = iterations
+    if sets:
+        over = deep_merge(over, sets)
     spec = as_user_spec(load_spec(problem))
     head = {"problem": str(Path(problem).resolve()) if problem.endswith(".yaml") else spec.name}
     cfg = spec.config(None, head, over)
@@ -82,6 +88,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--iterations", type=int, help="override the iteration budget (a quick look, not the benchmark)")
     p.add_argument("--threads", type=int, default=2)
     p.add_argument("--resolution", type=int, help="evaluation grid (default: that of ginn eval)")
+    p.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=VALUE",
+                   help="a setting applied to every problem (to measure a candidate default; not the benchmark)")
     args = p.parse_args(argv)
     suite = problems()
     names = args.only or list(suite)
@@ -89,13 +97,18 @@ def main(argv: list[str] | None = None) -> int:
     if unknown:
         print(f"--only: unknown problem(s) {', '.join(unknown)} (the suite: {', '.join(suite)})", file=sys.stderr)
         return 2
+    try:
+        sets = parse_set(args.sets)
+    except GinnError as e:
+        print(e, file=sys.stderr)
+        return 2
     out = Path(args.out)
     print("| problem | seed | feasible | worst CD1 (bound) | worst vol outside E | diversity | minutes |")
     print("|---|---|---|---|---|---|---|")
     rows = []
     for name in names:
         for seed in args.seeds:
-            r = run_one(suite[name], seed, out / f"{name}-s{seed}", args.iterations, args.threads, args.resolution)
+            r = run_one(suite[name], seed, out / f"{name}-s{seed}", args.iterations, args.threads, args.resolution, sets)
             rows.append(r)
             print(format_row(r), flush=True)
     ok = sum(r["feasible"] == r["shapes"] for r in rows)
