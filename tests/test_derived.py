@@ -1,6 +1,7 @@
 """Settings derived from a problem's geometry: the documented formulas, recorded in config.yaml,
 never reaching the built-in specs, and the public suite's specs valid."""
 
+import math
 from pathlib import Path
 
 import pytest
@@ -28,7 +29,8 @@ def test_weights_scale_with_the_size_of_the_domain(half):
     cfg = _spec(half).config()
     p = _spec(half).build()
     assert length_scale(p) == half
-    assert cfg.model.frame == "domain" and cfg.model.w0_first == 5.0  # the frame absorbs the scale
+    # the frame absorbs the scale: sqrt(s / h) with h = 5e-3 * unit_scale = 5e-3 s
+    assert cfg.model.frame == "domain" and cfg.model.w0_first == pytest.approx(math.sqrt(200.0))
     assert cfg.losses.interface.weight == pytest.approx(3000.0 / half**2)
     assert cfg.losses.design_region.weight == pytest.approx(300.0 / half)
     assert cfg.losses.connectedness.weight == pytest.approx(8.0 / half)
@@ -130,15 +132,19 @@ def test_a_problem_and_its_scaled_copy_train_alike():
         torch.testing.assert_close(a, b, rtol=1e-3, atol=1e-5)
 
 
-@pytest.mark.parametrize("radius, expected", [(0.05, 10.0), (0.08, 6.25), (0.3, 5.0)])
-def test_first_layer_frequency_follows_the_smallest_interface(radius, expected):
-    """omega_0^1 = max(5, s / (2 r)) for a circle interface of radius r (s = 1 here)."""
+@pytest.mark.parametrize("radius, tolerance, expected", [(0.02, 5e-3, 25.0), (0.05, 5e-3, math.sqrt(200.0)),
+                                                       (0.3, 5e-3, math.sqrt(200.0)), (0.3, 0.04, 5.0),
+                                                       (0.08, 0.04, 6.25)])
+def test_first_layer_frequency_follows_the_smallest_interface_and_the_tolerance(radius, tolerance, expected):
+    """omega_0^1 = max(5, s / (2 r), sqrt(s / h)) for a circle interface of radius r and the
+    interface tolerance h (s = 1 = unit_scale here)."""
     from ginn.problems.derived import smallest_feature
 
     spec = validate_spec({"name": "t", "geometry": {
         "dim": 2, "domain": {"lo": [-1, -1], "hi": [1, 1]},
         "interfaces": [{"type": "circle", "center": [0, 0], "radius": radius},
-                       {"type": "segment", "a": [-0.9, -0.9], "b": [0.9, -0.9]}]}})
+                       {"type": "segment", "a": [-0.9, -0.9], "b": [0.9, -0.9]}]},
+        "tolerances": {"interface": tolerance}})
     assert smallest_feature(spec.build()) == pytest.approx(radius)
     assert spec.config().model.w0_first == pytest.approx(expected)
     assert f"a = {radius:.4g} the smallest interface" in " ".join(spec.derived_notes(spec.config()))

@@ -4,19 +4,24 @@ A spec written by a user holds geometry, tolerances and perhaps the number of sh
 else comes from here. The length scale is ``s`` = half the longest side of the domain. The network
 works in the domain's frame (``model.frame: domain``), so its settings do not depend on ``s``; each
 loss weight carries the power of ``s`` that makes its term's contribution independent of the
-problem's size (a field that is a distance scales like ``s``). At ``s = 1`` the values are the
-obstacle's ``quick`` preset without its ``latent_scale`` (1.45), the configuration measured to make
-16 of 16 obstacle shapes feasible; with ``latent_scale`` 1 the obstacle reaches 12 of 16
-(``docs/results.md``, "Problem suite"):
+problem's size (a field that is a distance scales like ``s``). At ``s = 1`` the loss weights,
+point counts and schedule are the obstacle's ``quick`` preset's; the first-layer frequency follows
+the interfaces and the tolerance (14.1 instead of 5 at the default tolerance) and ``latent_scale``
+stays 1 (``docs/results.md``, "Problem suite", for what they reach):
 
 ==================  ==============================  =============================================
 setting             value                           why
 ==================  ==============================  =============================================
 model               SIREN 4 x 64 (2D), 3 x 128      the widths of the obstacle (2D) and bracket
                     (3D)                            (3D) CPU presets
-model.w0_first      max(5, s / (2 a)), a the        an interface of size a needs about s / a
-                    smallest interface              oscillations per half domain; 5 (the
-                    (:func:`smallest_feature`)      obstacle's value) at least
+model.w0_first      max(5, s / (2 a), sqrt(s / h)), an interface of size a needs about s / a
+                    a the smallest interface        oscillations per half domain; a field that
+                    (:func:`smallest_feature`), h   must meet the interfaces to within h needs
+                    the interface tolerance times   corners sharper than a smooth first layer
+                    ``unit_scale``                  draws: on the obstacle (4 shapes, 2000
+                                                    iterations) omega 5, 8, 12 gave the worst
+                                                    CD1 7.1e-3, 4.6e-3, 2.6e-3 (bound 5e-3);
+                                                    sqrt(s / h) is 14 at the default tolerance
 model.frame         domain                          the network sees the domain as [-1, 1] along
                                                     its longest side and returns distances in
                                                     units of s (:mod:`ginn.models.frame`)
@@ -39,6 +44,8 @@ tuned presets), so derived values reach only user specs and unset fields.
 """
 
 from __future__ import annotations
+
+import math
 
 from ..geometry.base import Box
 from .problem import Problem
@@ -80,10 +87,12 @@ def derived_defaults(problem: Problem) -> tuple[dict, dict[str, str]]:
 
     hidden = [64] * 4 if d == 2 else [128] * 3
     feature = smallest_feature(problem)
-    w0 = max(5.0, 0.5 * s / feature)
+    tol = problem.tolerances.interface * problem.unit_scale
+    w0 = max(5.0, 0.5 * s / feature, math.sqrt(s / tol))
     model = {"kind": "siren", "hidden": hidden, "w0_first": w0, "w0_hidden": 1.0, "frame": "domain"}
     note("model.frame", f"the network sees (x - c) / s and returns s times its output, s = {s:.4g}")
-    note("model.w0_first", f"max(5, s / (2 a)), a = {feature:.4g} the smallest interface")
+    note("model.w0_first", f"max(5, s / (2 a), sqrt(s / h)), a = {feature:.4g} the smallest interface, "
+                           f"h = {tol:.4g} the interface tolerance")
     note("model.hidden", f"{len(hidden)} x {hidden[0]} for a {d}D problem")
     losses = {
         "interface": {"weight": 3000.0 / s**2},
