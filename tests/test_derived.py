@@ -87,7 +87,8 @@ def test_suite_specs_are_valid_and_state_no_training_settings(path):
     p = spec.build()
     assert p.interfaces and spec.presets == {}
     assert set(spec.defaults) <= {"latents"} and set(spec.defaults.get("latents", {})) <= {"n_shapes"}
-    assert spec.config().latents.n_shapes in (1, 4, 16)
+    n = spec.config().latents.n_shapes
+    assert n == 1 or 4 <= n <= 16  # single shapes and generative sets of 4 to 16
 
 
 def test_suite_covers_what_the_issue_lists():
