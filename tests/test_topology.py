@@ -339,6 +339,36 @@ def test_warm_update_and_fallback():
     assert loss_fn.last_info["n_components"] == [1] and float(loss) == 0.0
 
 
+def test_warm_update_drops_a_merged_saddle():
+    """Three disks in a row, both saddles penalised (weight 1/2 each). A tilt f + 0.3 x pushes the
+    left saddle inside the shape (f = 0.05 - 0.09 < 0): the warm update keeps the right saddle,
+    re-converged to where a full build finds it, and drops the merged one; the loss is that
+    saddle's value at its old weight 1/2 (half the rebuilt loss, which renormalises to 1)."""
+    tilt = torch.zeros(1, dtype=DT)
+    base = blobs([[-0.6, 0.0], [0.0, 0.0], [0.6, 0.0]], 0.25)
+
+    def f(x, z=None):
+        return base(x) + float(tilt[0]) * x[:, 0]
+
+    loss_fn = ConnectednessLoss(BOX2, None, ConnectednessConfig(every=100), dtype=DT, options=TIGHT)
+    loss_fn(f, None)
+    _, _, p = loss_fn.penalised_points()
+    np.testing.assert_allclose(p.numpy(), [0.5, 0.5])
+    tilt[0] = 0.3
+    warm = loss_fn(f, None)
+    assert loss_fn.last_info["update"] == "warm" and loss_fn.last_info["n_merged"] == 1
+    x, _, p = loss_fn.penalised_points()
+    fresh = ConnectednessLoss(BOX2, None, ConnectednessConfig(every=100), dtype=DT, options=TIGHT)
+    rebuilt = fresh(f, None)
+    assert fresh.last_info["n_components"] == [2]
+    xf, _, pf = fresh.penalised_points()
+    np.testing.assert_allclose(x.numpy(), xf.numpy(), atol=1e-8)
+    assert float(x[0, 0]) > 0.3  # the right saddle, moved by the tilt
+    np.testing.assert_allclose(p.numpy(), [0.5])
+    np.testing.assert_allclose(pf.numpy(), [1.0])
+    assert float(warm) == pytest.approx(0.5 * float(rebuilt), abs=1e-10)
+
+
 def test_state_dict_round_trip(tmp_path):
     """A loss restored from a checkpoint continues exactly as the original: the same kind of update
     (warm, not a rebuild) and the same value, bitwise; the state is pickle-free (weights_only)."""

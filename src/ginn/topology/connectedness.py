@@ -32,8 +32,9 @@ bracket experiment.
 Cheap across steps (:class:`ConnectednessLoss`): the critical points persist. On a step without a
 full build only the *penalised saddles* (the only points the loss depends on) are re-converged
 with a few Newton steps on the current field and the loss is evaluated there with the stored
-weights; if one of them does not converge, leaves the box, changes its Morse index or falls inside
-the shape (its components merged), a full build runs instead. A full build (grid seeds plus all
+weights; one that fell inside the shape has joined its components, and its weight becomes 0 until
+the next full build; if one of them does not converge, leaves the box or changes its Morse index,
+a full build runs instead. A full build (grid seeds plus all
 previous points, Newton, DBSCAN, path tracing, grid labels, penalties) runs at least every
 ``config.every`` steps, and whenever the latent codes change. Re-converging *all* critical points
 is not attempted: on a SIREN one optimiser step moves the flat minima by up to a tenth of the
@@ -366,6 +367,7 @@ class ConnectednessLoss(ConnectednessLossBase):
         self._latents: Tensor | None = None
         self._seeds: tuple[Tensor, Tensor] | None = None
         self._results: list[Penalties] = []
+        self._merged = 0
         self._region_mask: np.ndarray | None = None
         self._grid_values = np.zeros(0)
         self._grid_nodes = torch.zeros(0)
@@ -557,6 +559,7 @@ class ConnectednessLoss(ConnectednessLossBase):
             "n_edges": int(len(self.network.edges)),
             "n_paths": int(self.network.n_paths),
             "n_penalised": int((self.penalty > 0).sum()) + len(self._extra[2]),
+            "n_merged": self._merged if reason == "warm" else 0,
             "n_fallback": len(self._extra[2]),
             "unreachable_pairs": int(sum(r.unreachable_pairs for r in self._results)),
         }
@@ -567,11 +570,13 @@ class ConnectednessLoss(ConnectednessLossBase):
         """Re-converge the penalised saddles on the current field (a few Newton steps).
 
         The loss depends only on them; the rest of the surface network is kept until the next
-        full build. Returns False (a full build is needed) when one of them does not converge,
-        leaves the box, stops being a saddle, or falls inside the shape (the components merged
-        there, so the graph changed).
+        full build. A saddle that fell inside the shape joined its components there: its weight
+        becomes 0 (that pair is connected; the other weights stay as they are until the next full
+        build). Returns False (a full build is needed) when one of them does not converge, leaves
+        the box or stops being a saddle.
         """
         assert self.points is not None and self.penalty is not None
+        self._merged = 0
         k = torch.from_numpy(np.nonzero(self.penalty > 0)[0]).to(self.device)
         if k.numel() == 0:
             return True
@@ -584,10 +589,13 @@ class ConnectednessLoss(ConnectednessLossBase):
         )
         lam, V = torch.linalg.eigh(r.hessian)
         index = (lam < 0).sum(-1)
-        ok = bool(r.converged.all()) and bool((index == self.points.index[k]).all()) and bool((r.f > 0).all())
+        ok = bool(r.converged.all()) and bool((index == self.points.index[k]).all())
         if ok:
             pts = self.points
             pts.x[k], pts.f[k], pts.grad_norm[k], pts.eigvals[k], pts.eigvecs[k] = r.x, r.f, r.grad_norm, lam, V
+            inside = (r.f <= 0).cpu().numpy()
+            self.penalty[k.cpu().numpy()[inside]] = 0.0
+            self._merged = int(inside.sum())
         return ok
 
     def _loss(self, field, Z: Tensor | None, S: int) -> Tensor:
