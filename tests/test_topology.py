@@ -32,6 +32,7 @@ from ginn.topology import (
     make_connectedness_loss,
     trace_surface_network,
 )
+from ginn.topology.connectedness import ShapeGraph, saddle_penalties
 
 DT = torch.float64
 
@@ -337,6 +338,28 @@ def test_warm_update_and_fallback():
     loss = loss_fn(f, None)
     assert loss_fn.last_info["update"] == "full"
     assert loss_fn.last_info["n_components"] == [1] and float(loss) == 0.0
+
+
+def test_pair_joined_only_through_a_maximum_goes_to_the_fallback():
+    """Two minima whose only link in G_a is a maximum: no saddle to lower, so the pair counts as
+    one the surface network cannot penalise (the grid fallback's input), not as connected; with
+    the middle vertex a saddle it takes the whole weight."""
+
+    def graph(middle: int) -> ShapeGraph:
+        return ShapeGraph(
+            x=np.array([[-0.5, 0.0], [0.5, 0.0], [0.0, 0.5]]), f=np.array([-1.0, -1.0, 0.3]),
+            kind=np.array([MINIMUM, MINIMUM, middle]), valid=np.ones(3, dtype=bool),
+            start=np.array([2, 2]), end=np.array([0, 1]), length=np.array([0.7, 0.7]),
+            outside_length=np.array([0.3, 0.3]), end_label=np.zeros(2, dtype=np.int64),
+            vertex_label=np.zeros(3, dtype=np.int64))
+
+    p = saddle_penalties(graph(MAXIMUM), 1e-2)
+    assert p.n_components == 2 and p.unreachable_pairs == 1
+    np.testing.assert_array_equal(p.weights, [0.0, 0.0, 0.0])
+    q = saddle_penalties(graph(SADDLE), 1e-2)
+    assert q.n_components == 2 and q.unreachable_pairs == 0
+    np.testing.assert_allclose(q.weights, [0.0, 0.0, 1.0])
+    assert q.raw_total == pytest.approx(1.0 / (0.6 + 1e-2))
 
 
 def test_warm_update_drops_a_merged_saddle():

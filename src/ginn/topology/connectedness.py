@@ -20,7 +20,8 @@ so that its weight does not depend on the batch size):
 3. **Penalties**: for every pair of components ``{c_i, c_j}`` the shortest path in G_a
    (``scipy.sparse.csgraph.dijkstra`` from every component node), of length ``d_ij``; every saddle
    on that path that is adjacent to a component on the path gets ``p_k += 1 / (d_ij + eps)``.
-   Pairs with no path are counted in ``last_info["unreachable_pairs"]``. Then ``p`` is
+   Pairs with no path, or whose path has no such saddle, are counted in
+   ``last_info["unreachable_pairs"]`` (the grid fallback below takes them). Then ``p`` is
    normalised to sum 1 (per shape).
 4. **Loss** ``sum_k p_k f(x_k)`` with the saddle positions ``x_k`` held fixed (detached), so the
    gradient moves the field, not the points.
@@ -105,7 +106,8 @@ class Penalties:
     Attributes:
         weights: normalised penalty per vertex ``(m,)`` (zeros when the shape is connected).
         n_components: number of components of the shape found.
-        unreachable_pairs: component pairs with no path in G_a.
+        unreachable_pairs: component pairs the surface network cannot penalise: no path in G_a,
+            or a shortest path with no saddle next to a component on it.
         labels: component of each vertex ``(m,)`` (-1 outside the shape or discarded).
         raw_total: sum of the penalties before normalisation (``weights * raw_total`` are the
             raw ``sum 1 / (d_ij + eps)``).
@@ -242,6 +244,9 @@ def saddle_penalties(g: ShapeGraph, eps: float) -> Penalties:
             adj[:-1] |= comp[1:]
             adj[1:] |= comp[:-1]
             hit = path[adj & ~comp & is_saddle[path]]
+            if len(hit) == 0:  # joined only through maxima or path anchors: nothing to lower here
+                unreachable += 1
+                continue
             weights[vertex_of[hit]] += 1.0 / (dij + eps)
     total = weights.sum()
     if total > 0:
@@ -475,7 +480,9 @@ class ConnectednessLoss(ConnectednessLossBase):
 
     def _fallback(self, results: list[Penalties], have_grid: bool) -> None:
         """For shapes with component pairs the surface network cannot join (no path in G_a, e.g.
-        the separating saddle lies outside the design region, inside an obstacle), penalise the
+        the separating saddle lies outside the design region, inside an obstacle; or a path that
+        passes no saddle, e.g. a sliver along the boundary of E reached through a path anchor),
+        penalise the
         death nodes of the cubical persistent homology of the label grid (restricted to E) that
         are farther than two grid cells from every penalised saddle, with raw weights
         ``1 / (2 f + eps)``, normalised together with the surface-network weights of the shape."""
