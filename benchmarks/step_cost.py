@@ -12,7 +12,8 @@ For each configuration it prints seconds per iteration (the median over ``--bloc
 ``--steps`` iterations; configurations take turns block by block, so a drift of the machine's
 speed hits all of them alike) and the share of each part of a step (of all blocks together): sampling, the main pass,
 the zero-level-set projection, curvature and strain, diversity, connectedness, and the backward
-pass with the optimiser step. ``--shapes`` overrides the number of shapes of generative shape
+pass with the optimiser step, and the share of connectedness calls that rebuilt the whole surface
+network (the rest are warm updates, ``docs/connectedness.md``). ``--shapes`` overrides the number of shapes of generative shape
 presets and prints the scaling exponent of the step cost (``t ~ S^a`` between the first and the
 last count). ``--compare full-diversity`` runs every configuration twice, with the exact
 nearest-pair diversity (ginn's) and with the full ``S x S`` computation, and prints their ratio;
@@ -56,6 +57,8 @@ class Clock:
 
     def __init__(self):
         self.t = defaultdict(float)
+        self.calls = 0  # connectedness calls, and those that rebuilt the surface network
+        self.rebuilds = 0
 
     @contextmanager
     def part(self, name: str):
@@ -87,7 +90,11 @@ class _Timed:
 
     def __call__(self, *a, **kw):
         with self._clock.part(self._name):
-            return self._inner(*a, **kw)
+            out = self._inner(*a, **kw)
+        info = getattr(self._inner, "last_info", None) or {}
+        self._clock.calls += 1
+        self._clock.rebuilds += info.get("update") == "full"
+        return out
 
     def __getattr__(self, attr):
         return getattr(self._inner, attr)
@@ -130,6 +137,7 @@ def run_block(trainer: Trainer, clock: Clock, steps: int, full_diversity: bool) 
 
     shape_module.diversity_nearest = timed_div
     clock.t.clear()
+    clock.calls = clock.rebuilds = 0
     t0 = time.perf_counter()
     try:
         for _ in range(steps):
@@ -140,7 +148,8 @@ def run_block(trainer: Trainer, clock: Clock, steps: int, full_diversity: bool) 
         shape_module.diversity_nearest = div_fn
     total = time.perf_counter() - t0
     t = dict(clock.t)
-    out = {"total": total / steps, "diversity": inner.t["diversity"] / steps}
+    out = {"total": total / steps, "diversity": inner.t["diversity"] / steps,
+           "calls": clock.calls, "rebuilds": clock.rebuilds}
     out["curvature/strain"] = (t.get("curvature/strain", 0.0) - inner.t["diversity"]) / steps
     for k in ("sampling", "projection", "connectedness"):
         out[k] = t.get(k, 0.0) / steps
@@ -216,17 +225,21 @@ def main(argv: list[str] | None = None) -> int:
             results[c].append(run_block(*built[c], args.steps, c[2] and full_div))
 
     print(f"# {args.device}, {args.threads} thread(s); median of {args.blocks} interleaved blocks of {args.steps} iterations")
-    print("| preset | shapes | variant | s / iteration | " + " | ".join(PARTS) + (" | peak memory (GiB) |" if args.memory else " |"))
-    print("|" + "---|" * (4 + len(PARTS) + (1 if args.memory else 0)))
+    print("| preset | shapes | variant | s / iteration | " + " | ".join(PARTS) + " | full rebuilds |"
+          + (" peak memory (GiB) |" if args.memory else ""))
+    print("|" + "---|" * (5 + len(PARTS) + (1 if args.memory else 0)))
     med = {}
     for c in configs:
         rows = results[c]
         med[c] = statistics.median(r["total"] for r in rows)
         whole = sum(r["total"] for r in rows)  # shares: of all the blocks' time together
         shares = [f"{100 * max(sum(r[k] for r in rows), 0.0) / whole:.0f} %" for k in PARTS]
+        calls = sum(r["calls"] for r in rows)
+        rebuilds = f"{100 * sum(r['rebuilds'] for r in rows) / calls:.0f} %" if calls else "–"
         mem = f" {peak_memory(args, c[0], c[1], c[2]):.2f} |" if args.memory else ""
         n = c[1] if c[1] is not None else built[c][0].cfg.latents.n_shapes
-        print(f"| {c[0]} | {n} | {args.compare if c[2] else 'ginn'} | {med[c]:.3f} | " + " | ".join(shares) + f" |{mem}")
+        print(f"| {c[0]} | {n} | {args.compare if c[2] else 'ginn'} | {med[c]:.3f} | " + " | ".join(shares)
+              + f" | {rebuilds} |{mem}")
     if args.compare != "none":
         for preset, s, full in configs:
             if not full:
