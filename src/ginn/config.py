@@ -216,6 +216,17 @@ class TrainingConfig(_Strict):
     keep_most_feasible: bool = Field(
         True, description="shape problems: end the run with the weights of the feasibility check that found the most "
         "feasible shapes (the latest of equals) when the last check found fewer; logged as a 'restored' event")
+    log: list[Literal["jsonl", "tensorboard"]] = Field(
+        ["jsonl"], description="where the metrics go: jsonl (metrics.jsonl, always; resume and eval read it) and "
+        "optionally tensorboard (event files in RUN/tensorboard: losses, multipliers, learning rate, feasibility, "
+        "the figures at the end; needs the track extra)")
+
+    @field_validator("log")
+    @classmethod
+    def _jsonl_kept(cls, v: list[str]) -> list[str]:
+        if "jsonl" not in v:
+            raise ValueError("must include jsonl: metrics.jsonl is the run's record (resume and eval read it)")
+        return list(dict.fromkeys(v))
 
 
 

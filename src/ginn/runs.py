@@ -100,6 +100,13 @@ def _spec_file(spec: ProblemSpec) -> Path | None:
 
 def _finish(trainer: Trainer, task: Task, run_dir: Path, results: bool, say: Say) -> Outcome:
     """Train to the end (the trainer keeps ``status.json`` true) and write the result files."""
+    try:
+        return _finish_run(trainer, task, run_dir, results, say)
+    finally:
+        trainer.close()
+
+
+def _finish_run(trainer: Trainer, task: Task, run_dir: Path, results: bool, say: Say) -> Outcome:
     res = trainer.train()
     out = Outcome(res.status, res.step, res.seconds, run_dir, task, trainer.model, reason=res.reason)
     if not trainer.is_main or res.status != "completed":  # ranks > 0 write nothing; interrupted or stopped
@@ -117,6 +124,7 @@ def _finish(trainer: Trainer, task: Task, run_dir: Path, results: bool, say: Say
         except OSError as e:
             write_status(run_dir, "failed", res.step, res.seconds, f"writing the results: {e.strerror}")
             raise io_error(e, e.filename or run_dir) from None
+        trainer.log_figures(out.results)
         write_status(run_dir, "completed", res.step, res.seconds)
         if out.results:
             say("results:")

@@ -41,6 +41,7 @@ from .checkpoint import load_checkpoint, rng_state, save_checkpoint, set_rng_sta
 from .distributed import DistContext
 from .rundir import io_error, truncate_metrics, write_status
 from .task import Task
+from .tblog import TensorBoardLog, tensorboard_available
 
 
 class TrainingDiverged(GinnError):
@@ -194,6 +195,9 @@ class Trainer:
         self._objective_before: float | None = None  # their mean over the interval before
         self.best: dict | None = None  # the check with the most feasible shapes: step, summary, weights
         self.restored: dict | None = None  # the 'restored' event, when the run ended with the best weights
+        self._tb: TensorBoardLog | None = None  # opened by train() with training.log: [..., tensorboard]
+        if "tensorboard" in cfg.training.log and not tensorboard_available():
+            raise ConfigError("training.log: tensorboard needs the tensorboard package (pip install 'ginn[track]')")
 
     # --- checkpoints -------------------------------------------------------------------------
 
@@ -311,6 +315,19 @@ class Trainer:
                 fh.write(json.dumps(record) + "\n")
         except OSError as e:
             raise GinnError(f"{io_error(e, path)}; {self._intact()}") from None
+        if self._tb is not None:
+            self._tb.write(record)
+
+    def log_figures(self, paths: list[Path]) -> None:
+        """Add the run's result figures to the TensorBoard log (when it is on), at the last step."""
+        if self._tb is not None:
+            self._tb.figures(paths, self.step)
+
+    def close(self) -> None:
+        """Flush and close the TensorBoard log (a later ``train`` opens it again)."""
+        if self._tb is not None:
+            self._tb.close()
+            self._tb = None
 
     # --- the loop ------------------------------------------------------------------------------
 
@@ -444,6 +461,8 @@ class Trainer:
         status = "completed"
         t0 = time.perf_counter() - self.elapsed
         stopped: StopRun | None = None
+        if "tensorboard" in t.log and self.run_dir is not None and self.is_main and self._tb is None:
+            self._tb = TensorBoardLog(self.run_dir, purge_step=self.step + 1 if self.step > 0 else 0)
         self._status("running")
         try:
             with _StopFlag() as flag:
@@ -495,6 +514,8 @@ class Trainer:
                 self._log({"step": self.step, "event": "interrupted", "signal": flag.signum})
             elif stopped is not None:
                 self._log({"step": self.step, "event": status, "reason": str(stopped)})
+            if self._tb is not None:
+                self._tb.writer.flush()
         except KeyboardInterrupt:
             if bar is not None:
                 bar.close()
