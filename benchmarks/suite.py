@@ -7,9 +7,10 @@
     python benchmarks/suite.py --set training.lr_decay=0.1  # a candidate default, on every problem
 
 The problems are ``benchmarks/suite/*.yaml``, written the way users write specs: geometry, the
-number of shapes and nothing about training, plus the geometry of the built-in ``obstacle``,
-``bracket`` and ``plateau`` with their number of shapes (their paper settings and presets set
-aside, so that every problem trains with the settings ginn derives). Each (problem, seed) is trained into ``--out``,
+number of shapes and nothing about training, plus the built-in ``obstacle``, ``bracket`` and
+``plateau`` with their geometry and shapes (number and latent range) only: the obstacle and
+bracket as ``ginn train NAME`` trains them, plateau without the paper's settings that its spec
+states, so that every problem trains with the settings ginn derives). Each (problem, seed) is trained into ``--out``,
 evaluated like ``ginn eval`` (the problem's tolerances, ``docs/problem-spec.md``), and printed as
 one row: feasible shapes of all, the worst CD1 (the interface tolerance times ``unit_scale`` in
 brackets), the worst volume outside E, the diversity, and the wall time of training and
@@ -42,9 +43,9 @@ def problems() -> dict[str, str]:
 
 
 def as_user_spec(spec: ProblemSpec) -> ProblemSpec:
-    """``spec`` as a user would write it: geometry, tolerances and the number of shapes only."""
-    n = spec.config().latents.n_shapes
-    return spec.model_copy(update={"defaults": {"latents": {"n_shapes": n}}, "presets": {}})
+    """``spec`` as a user would write it: geometry, tolerances and the shapes (number, latent range)
+    only. The built-in obstacle and bracket are that already without a preset."""
+    return spec.model_copy(update={"defaults": {"latents": dict(spec.defaults.get("latents", {}))}, "presets": {}})
 
 
 def run_one(problem: str, seed: int, out: Path, iterations: int | None, threads: int, resolution: int | None,

@@ -68,17 +68,22 @@ def test_the_spec_overrides_and_config_yaml_says_what_was_derived(tmp_path):
 
 
 def test_builtin_specs_state_every_derived_setting():
-    """The paper reproductions keep their settings: every derived path is stated by their defaults
-    (plateau's MLP leaves the SIREN frequency unused)."""
-    for name in ("obstacle", "bracket", "plateau"):
+    """The paper reproductions keep their settings: every derived path is stated by the `paper`
+    preset (or plateau's defaults; its MLP leaves the SIREN frequency unused), while the obstacle
+    and bracket state nothing but their shapes and latent range without a preset."""
+    for name, preset in (("obstacle", "paper"), ("bracket", "paper"), ("plateau", None)):
         spec = load_spec(name)
-        notes = spec.derived_notes(spec.config())
+        cfg = spec.config(preset)
+        notes = spec.derived_notes(cfg)
         allowed = {"model.kind", "model.w0_hidden"} | ({"model.w0_first"} if name == "plateau" else set())
-        assert spec.config().model.frame == "raw"
+        assert cfg.model.frame == "raw"
         kept = {n.split(" = ")[0] for n in notes}
         # a derived value may coincide with the stated one; what matters is that none is taken from derived alone
-        stated = set(flattened(spec.defaults))
+        stated = set(flattened(spec.defaults)) | {p for layer in spec.preset_layers(preset) for p in flattened(layer)}
         assert kept - stated - allowed == set(), (name, sorted(kept - stated - allowed))
+        if preset is not None:
+            assert set(spec.defaults) == {"latents"}
+            assert spec.config().model.frame == "domain"  # no preset: the derived settings
 
 
 @pytest.mark.parametrize("path", SUITE, ids=[p.stem for p in SUITE])

@@ -38,7 +38,7 @@ def _free_port() -> int:
 
 def _config(extra=None):
     spec = load_spec("obstacle")
-    return spec, spec.config(None, SMALL, extra or {})
+    return spec, spec.config("paper", SMALL, extra or {})
 
 
 def _weights(model) -> torch.Tensor:
@@ -55,7 +55,7 @@ def _worker(rank: int, world: int, port: int, run_dir: str, iterations: list[int
     spec, cfg = _config(extra)
     losses = []
     for i, n in enumerate(iterations):  # several entries: stop, then resume from the checkpoint
-        c = spec.config(None, SMALL, extra, {"training": {"iterations": n}})
+        c = spec.config("paper", SMALL, extra, {"training": {"iterations": n}})
         tr = Trainer(make_task(spec, c), c, run_dir, progress=False, dist=ctx)
         if i > 0:
             assert tr.resume()

@@ -12,6 +12,7 @@ from ginn.config import RunConfig
 from ginn.errors import ConfigError, SpecError
 from ginn.geometry import Box, sample_band, sample_box, sample_inside, sample_interfaces, sample_outside
 from ginn.problems import get_spec, list_problems, load_spec, parse_spec, problem_summaries, spec_text
+from ginn.problems.spec import validate_spec
 
 F64 = torch.float64
 REPO = Path(__file__).resolve().parents[1]
@@ -44,12 +45,20 @@ def test_obstacle_is_appendix_a4(gen):
     assert ((x[:, 0].abs() - 0.9).abs() < 1e-12).all() and (x[:, 1].abs() <= 0.4).all()
     torch.testing.assert_close(n, torch.stack([torch.sign(x[:, 0]), torch.zeros(400, dtype=F64)], -1))
     assert [i.component_of(x[:1]).item() for i in p.interfaces] == [0, 0]
-    # the defaults follow paper Table 2 (SIREN column)
-    cfg = spec.config()
+    # the `paper` preset follows paper Table 2 (SIREN column)
+    cfg = spec.config("paper")
     assert cfg.model.kind == "siren" and cfg.model.hidden == [64, 64, 64, 64] and cfg.model.w0_first == 1.0
     assert cfg.latents.n_shapes == 16 and (cfg.latents.low, cfg.latents.high) == (-1.0, 1.0)
     assert cfg.losses.normal.weight == 1e-2 and cfg.losses.eikonal.weight == 1e-5
     assert cfg.training.iterations == 3000 and cfg.training.lr_decay == 0.5
+    # without a preset: the spec's 16 shapes, everything else derived as for a user's spec
+    cfg = spec.config()
+    assert cfg.latents.n_shapes == 16 and (cfg.latents.low, cfg.latents.high) == (-1.0, 1.0)
+    assert cfg.model.w0_first == pytest.approx(math.sqrt(1 / 5e-3)) and cfg.model.frame == "domain"
+    assert cfg.losses.interface.weight == 3000.0 and cfg.training.iterations == 4000
+    # the tuned presets extend `paper`: what `paper` sets and they do not is the paper's
+    quick = spec.config("quick")
+    assert quick.model.frame == "raw" and quick.model.w0_first == 5.0 and quick.training.lr_decay == 0.5
     area = mc_area(p.design_region, p.domain, gen)
     assert area == pytest.approx(1.44 - math.pi * 0.01, rel=0.01)
 
@@ -320,3 +329,21 @@ def test_nested_error_paths():
     """
     _fail(text, "spec field 'geometry.interfaces[0].parts[1]': polyline has a zero-length segment")
     _fail(text.replace("r_inner: 0.1", "r_inner: 0.3"), "spec field 'geometry.interfaces[0].parts[0]': r_inner = 0.3 must be below r_outer = 0.2")
+
+
+def test_preset_extends(tmp_path):
+    """``extends`` layers a preset on another (outermost first); an unknown or cyclic one is one
+    line naming the field."""
+    base = {"name": "ext", "geometry": {"dim": 2, "domain": {"lo": [-1, -1], "hi": [1, 1]},
+                                        "interfaces": [{"type": "segment", "a": [-0.5, 0], "b": [0.5, 0]}]}}
+    spec = validate_spec({**base, "presets": {
+        "a": {"training": {"iterations": 7, "lr": 2e-3}},
+        "b": {"extends": "a", "training": {"iterations": 9}},
+        "c": {"extends": "b", "model": {"w0_first": 3.0}}}})
+    cfg = spec.config("c")
+    assert (cfg.training.iterations, cfg.training.lr, cfg.model.w0_first) == (9, 2e-3, 3.0)
+    assert [list(layer) for layer in spec.preset_layers("c")] == [["training"], ["training"], ["model"]]
+    with pytest.raises(SpecError, match=r"spec field 'presets.b.extends': unknown preset 'z'"):
+        validate_spec({**base, "presets": {"b": {"extends": "z"}}})
+    with pytest.raises(SpecError, match=r"spec field 'presets.a.extends': a cycle \(a -> b -> a\)"):
+        validate_spec({**base, "presets": {"a": {"extends": "b"}, "b": {"extends": "a"}}})

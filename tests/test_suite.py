@@ -26,9 +26,12 @@ def test_builtins_enter_as_users_would_write_them(suite):
     from ginn.problems import load_spec
 
     spec = suite.as_user_spec(load_spec("obstacle"))
-    assert spec.defaults == {"latents": {"n_shapes": 16}} and spec.presets == {}
+    assert spec.defaults == {"latents": {"n_shapes": 16, "dim": 1, "low": -1.0, "high": 1.0}} and spec.presets == {}
     cfg = spec.config()
     assert cfg.model.frame == "domain" and cfg.losses.interface.weight == 3000.0  # derived, not the paper's 1.0
+    assert cfg == load_spec("obstacle").config()  # what `ginn train obstacle` trains
+    plateau = suite.as_user_spec(load_spec("plateau"))
+    assert plateau.defaults == {"latents": {"n_shapes": 1}} and plateau.config().losses.mean_curvature.weight == 0
 
 
 def test_a_row_per_run_and_the_rate(suite, tmp_path, capsys):

@@ -39,8 +39,9 @@ points              2D: 1024 domain, 512 outside,   per shape and iteration
                     256, 1024, 256
 ==================  ==============================  =============================================
 
-The built-in specs state every one of these settings themselves (their paper reproductions and
-tuned presets), so derived values reach only user specs and unset fields.
+The built-in ``obstacle`` and ``bracket`` specs state only their number of shapes and latent range,
+so they train with these settings unless a preset (their ``paper`` preset and its variants) states
+others; ``plateau`` states the paper's settings (its curvature objective is the problem).
 """
 
 from __future__ import annotations

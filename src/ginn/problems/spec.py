@@ -122,8 +122,28 @@ class ProblemSpec(BaseModel):
         if preset is not None and preset not in self.presets:
             avail = ", ".join(sorted(self.presets)) or "none"
             raise ConfigError(f"unknown preset '{preset}' for problem '{self.name}' (available: {avail})")
-        return build_config(self._head(preset), self.derived()[0], self.defaults,
-                            self.presets.get(preset, {}) if preset else {}, *overrides)
+        return build_config(self._head(preset), self.derived()[0], self.defaults, *self.preset_layers(preset),
+                            *overrides)
+
+    def preset_layers(self, preset: str | None) -> list[dict]:
+        """The partial configurations of ``preset``, outermost first: a preset that says
+        ``extends: OTHER`` is ``OTHER``'s layers with its own on top (the paper's settings once,
+        their variants as differences)."""
+        layers: list[dict] = []
+        seen: list[str] = []
+        while preset is not None:
+            if preset in seen:
+                raise SpecError(f"spec field 'presets.{seen[0]}.extends': a cycle ({' -> '.join([*seen, preset])})")
+            if preset not in self.presets:
+                raise SpecError(f"spec field 'presets.{seen[-1]}.extends': unknown preset '{preset}' "
+                                f"(available: {', '.join(sorted(self.presets))})")
+            seen.append(preset)
+            layer = dict(self.presets[preset])
+            preset = layer.pop("extends", None)
+            if preset is not None and not isinstance(preset, str):
+                raise SpecError(f"spec field 'presets.{seen[-1]}.extends': must be the name of another preset")
+            layers.insert(0, layer)
+        return layers
 
     def derived(self) -> tuple[dict, dict[str, str]]:
         """The settings derived from the geometry and why (:func:`ginn.problems.derived.derived_defaults`);
@@ -244,5 +264,5 @@ def _check_configs(spec: ProblemSpec) -> None:
             raise SpecError(f"spec field '{prefix}': {text}") from None
 
     run("defaults", spec._head(None), spec.defaults)
-    for name, over in spec.presets.items():
-        run(f"presets.{name}", spec._head(name), spec.defaults, over)
+    for name in spec.presets:
+        run(f"presets.{name}", spec._head(name), spec.defaults, *spec.preset_layers(name))
