@@ -1,5 +1,6 @@
 # The two quick-start commands: `make run` (train a built-in problem on CPU) and `make test`
-# (lint, then the default test suite; .ci/run calls it).
+# (a headless Chromium for the explorer's browser test where it can be installed, lint, then the
+# default test suite; .ci/run calls it).
 .PHONY: run test test-slow bench venv clean
 
 VENV := .venv
@@ -13,6 +14,7 @@ run: venv
 	$(GINN) train obstacle --preset demo
 
 test: venv
+	@bash scripts/setup-browser.sh
 	$(VENV)/bin/ruff check src tests benchmarks scripts
 	$(PYTEST) -q -m "not slow"
 

@@ -44,6 +44,11 @@ def _run(args, capsys, monkeypatch, cwd) -> tuple[int, str]:
 
 
 CASES = {
+    "view: no run": (lambda r, t: ["view", t / "missing"], "missing"),
+    "view: unfinished run": (lambda r, t: _running(_copy(r, t / "r")), "ginn view shows completed runs"),
+    "view: --steps 0": (lambda r, t: ["view", r, "--steps", "0"], "--steps"),
+    "view: --steps x": (lambda r, t: ["view", r, "--steps", "x"], "--steps"),
+    "view: not a shape run": (lambda r, t: _not_a_shape_run(r, t), "ginn view shows shape problems"),
     "--out is a file": (lambda r, t: (t / "f").write_text("x") and ["train", "obstacle", "--out", t / "f", *TINY],
                         "not a directory"),
     "no interfaces": (lambda r, t: (t / "empty.yaml").write_text(
@@ -87,6 +92,19 @@ CASES = {
         "defaults: {diversity: {interface_clearance: 0.05}}\n") and ["train", t / "old.yaml"],
         "spec field 'defaults.diversity.interface_clearance' was retired: the diversity measures the whole boundary"),
 }
+
+
+def _running(run: Path) -> list:
+    from ginn.train.rundir import write_status
+
+    write_status(run, "running", 3, 1.0)
+    return ["view", run]
+
+
+def _not_a_shape_run(run: Path, tmp: Path) -> list:
+    spec, cfg = runs.resolve("mirror", "demo", {"training": {"iterations": 2}})
+    runs.train(spec, cfg, tmp / "mirror", progress=False, results=False)
+    return ["view", tmp / "mirror"]
 
 
 def _empty_ckpt(run: Path) -> list:

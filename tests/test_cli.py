@@ -88,5 +88,5 @@ def test_train_eval_export_plot_resume_round_trip(tmp_path, capsys):
 def test_module_entry_point_help():
     r = subprocess.run([sys.executable, "-m", "ginn", "--help"], capture_output=True, text=True, timeout=120)
     assert r.returncode == 0
-    for cmd in ("train", "resume", "problems", "eval", "export", "plot", "sweep"):
+    for cmd in ("train", "resume", "problems", "eval", "export", "plot", "view", "sweep"):
         assert cmd in r.stdout

@@ -26,6 +26,7 @@ from .errors import ConfigError, GinnError
 from .eval.feasibility import format_feasibility
 from .problems import ProblemSpec, load_spec
 from .tasks import make_task
+from .tasks.shape import ShapeTask
 from .train.checkpoint import load_checkpoint
 from .train.distributed import DistContext, on_main
 from .train.rundir import (
@@ -39,6 +40,7 @@ from .train.rundir import (
 )
 from .train.task import Task
 from .train.trainer import Trainer
+from .viz.explorer import write_explorer
 
 __all__ = [
     "Run", "Outcome", "is_spec_file", "resolve", "train", "resume", "fit", "load_run",
@@ -334,6 +336,24 @@ def export(run_dir: str | Path, latents: list[list[float]] | None = None, resolu
     run = load_run(run_dir)
     out_dir = Path(out) if out else run.path / "export"
     return run.task.export(run.model, latents or None, out_dir, resolution, mesh_format)
+
+
+def view(run_dir: str | Path, out: str | Path | None = None, steps: int = 64) -> Path:
+    """The latent-space explorer of a completed shape run (``ginn view``): one self-contained HTML
+    file (:mod:`ginn.viz.explorer`), ``RUN/figures/explorer.html`` unless ``out`` says otherwise."""
+    run_dir = Path(run_dir)
+    st = read_status(run_dir)
+    if st.status not in ("completed", "unknown"):
+        raise ConfigError(f"{run_dir}: the run is {st.describe()}; ginn view shows completed runs "
+                          f"(`ginn resume {run_dir}` finishes it)")
+    if steps < 1:
+        raise ConfigError(f"--steps must be at least 1, got {steps}")
+    run = load_run(run_dir)
+    if not isinstance(run.task, ShapeTask):
+        raise ConfigError(f"{run_dir}: ginn view shows shape problems; this run is a {run.task.kind} problem "
+                          "(`ginn plot` draws its figures)")
+    path = Path(out) if out is not None else run.path / "figures" / "explorer.html"
+    return write_explorer(run.model, run.task.Z, run.task.problem, path, steps=steps, title=f"{run.spec.name}: {run.path.name}")
 
 
 def plot(run_dir: str | Path, resolution: int | None = None) -> list[Path]:

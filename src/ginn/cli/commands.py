@@ -136,6 +136,11 @@ def cmd_plot(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_view(args: argparse.Namespace) -> int:
+    print(runs.view(Path(args.run_dir), args.out, args.steps))
+    return 0
+
+
 def cmd_sweep(args: argparse.Namespace) -> int:
     sweep.require_optuna()
     if args.report:
@@ -199,5 +204,6 @@ COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {
     "eval": cmd_eval,
     "export": cmd_export,
     "plot": cmd_plot,
+    "view": cmd_view,
     "sweep": cmd_sweep,
 }

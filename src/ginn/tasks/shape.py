@@ -36,6 +36,7 @@ from ..problems.problem import Problem
 from ..topology import ConnectednessLossBase, make_connectedness_loss
 from ..train.distributed import DistContext, cross_values_sharded
 from ..train.task import Task
+from ..viz.explorer import write_explorer
 from ..viz.plateau import write_plateau_results
 from ..viz.plot import plot_run, save_shape_figure
 
@@ -335,13 +336,16 @@ class ShapeTask(Task):
 
     def finalize(self, model: nn.Module, run_dir: Path) -> list[Path]:
         """``shapes/`` (2D: contour polylines and drawings per shape; 3D: one STL per shape),
-        ``figures/`` (shapes, superposition and interpolation in 2D, views in 3D, loss curves) and,
+        ``figures/`` (shapes, superposition and interpolation in 2D, views in 3D, loss curves, the
+        latent-space explorer ``explorer.html``) and,
         for a problem with a minimal-surface reference, ``plateau/``."""
         run_dir = Path(run_dir)
         model.eval()
         res = self._output_resolution()
         paths = self._write_shapes(model, self.Z, run_dir / "shapes", res, "stl")
         paths += self.plot(model, run_dir, res)
+        paths.append(write_explorer(model, self.Z, self.problem, run_dir / "figures" / "explorer.html",
+                                    title=f"{self.problem.name}: {run_dir.name}"))
         if self.problem.reference == "minimal-surface":
             paths += write_plateau_results(model, self.problem, run_dir, resolution=res)
         return paths

@@ -1,0 +1,311 @@
+"""The latent-space explorer of a shape run: one self-contained HTML file (``ginn view``).
+
+The page embeds plotly's JavaScript, so it opens without a network. A slider walks through the
+latent space: the trained latents plus ``steps`` evenly spaced values between the smallest and the
+largest (1D latents; a trained one is marked ``trained`` in the slider's label), or an
+``n x n`` grid over the plane through the trained latents' mean spanned by their two principal
+directions (two sliders; ``n = ceil(sqrt(steps))``). For each value the page shows
+
+* 2D: the filled shape over the domain, the design region's outline, the obstacles (grey) and the
+  interfaces with their prescribed normals; below, every trained shape's outline superposed
+  (the paper's Figure 1);
+* 3D: the extracted mesh, the design region as a translucent surface and the interface samples;
+
+and beside it the shape's feasibility verdict (``ginn.eval.feasibility``) with its CD1, volume
+outside E and number of pieces, measured on the same grid the picture comes from.
+
+The URL fragment ``#step=K`` (or ``#step=I,J`` for a latent plane) opens the page at that slider
+position.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from ..eval.feasibility import FEASIBILITY_METRICS, verdict_text, violations
+from ..eval.metrics import extract_shape, prepare_context, shape_metrics
+from ..extract.boundary import extract_boundary
+from ..extract.grid import make_grid
+from ..fields import Field
+from ..problems.problem import Problem
+
+__all__ = ["ExplorerLatents", "explorer_latents", "write_explorer", "EXPLORER_RESOLUTION"]
+
+#: Grid cells along the longest domain axis of the pictures (and of the metrics beside them).
+EXPLORER_RESOLUTION = {2: 128, 3: 40}
+
+SHAPE_COLOR = "#3b75af"
+
+
+@dataclass
+class ExplorerLatents:
+    """The latent values the sliders reach.
+
+    Attributes:
+        codes: ``(n, k)`` latents, or ``[None]`` for a latent-free single shape.
+        labels: one slider label per code.
+        trained: whether each code is a trained latent.
+        grid: ``(n_i, n_j)`` for a latent plane (two sliders), None for one slider.
+    """
+
+    codes: list[Tensor | None]
+    labels: list[str]
+    trained: list[bool]
+    grid: tuple[int, int] | None = None
+
+
+def explorer_latents(Z: Tensor | None, steps: int) -> ExplorerLatents:
+    """The slider positions for trained latents ``Z (S, k)`` (None: one shape) and ``steps`` values."""
+    if Z is None:
+        return ExplorerLatents([None], ["the shape"], [True])
+    Z = Z.detach().double().cpu()
+    if Z.shape[1] == 1:
+        z = Z[:, 0]
+        lo, hi = float(z.min()), float(z.max())
+        even = torch.linspace(lo, hi, steps, dtype=torch.float64) if steps > 1 and hi > lo else torch.tensor([lo])
+        tol = 1e-9 * max(1.0, abs(lo), abs(hi))
+        extra = [v for v in even.tolist() if not bool(((z - v).abs() <= tol).any())]
+        values = sorted([(v, True) for v in z.tolist()] + [(v, False) for v in extra])
+        return ExplorerLatents([torch.tensor([v]) for v, _ in values],
+                               [f"{v:.4g}" + (" trained" if t else "") for v, t in values], [t for _, t in values])
+    mean = Z.mean(0)
+    centred = Z - mean
+    _, s, Vh = torch.linalg.svd(centred, full_matrices=False) if Z.shape[0] > 1 else (None, torch.zeros(0), None)
+    k = Z.shape[1]
+    axes = [Vh[i] if i < len(s) and float(s[i]) > 1e-12 else torch.eye(k, dtype=torch.float64)[i] for i in range(2)]
+    n = max(2, math.ceil(math.sqrt(steps)))
+    ranges = []
+    for u in axes:
+        proj = centred @ u
+        a, b = float(proj.min()), float(proj.max())
+        if b - a < 1e-12:
+            a, b = a - 1.0, b + 1.0
+        ranges.append(torch.linspace(a, b, n, dtype=torch.float64))
+    codes, labels = [], []
+    for i in range(n):
+        for j in range(n):
+            codes.append(mean + ranges[0][i] * axes[0] + ranges[1][j] * axes[1])
+            labels.append(f"{float(ranges[0][i]):.3g}, {float(ranges[1][j]):.3g}")
+    return ExplorerLatents(codes, labels, [False] * len(codes), (n, n))
+
+
+def _verdict(m: dict, problem: Problem) -> str:
+    lines = verdict_text(violations(m, problem)).replace(", ", "; ").split("; ")
+    cd1, vol, b0 = m.get("interface_cd1"), m.get("volume_outside"), m.get("b0_in_design_region")
+    if cd1 is not None and problem.interfaces:
+        lines.append(f"CD1 {cd1:.2e} (bound {problem.tolerances.interface * problem.unit_scale:.2e})")
+    if vol is not None:
+        lines.append(f"volume outside E {vol:.2e} (bound {problem.tolerances.volume_outside:.2e})")
+    if b0 is not None:
+        lines.append(f"pieces inside E {int(b0)}")
+    return "<br>".join(lines)
+
+
+def _contours(values: np.ndarray, grid, pad: int = 0) -> list[np.ndarray]:
+    """The zero contours of node ``values`` (2D; ``pad`` extra nodes on every side) in world coordinates."""
+    from skimage import measure
+
+    return [grid.lo + (c - pad) * grid.spacing for c in measure.find_contours(values, 0.0)]
+
+
+def _lines(polylines: list[np.ndarray], d: int) -> list[np.ndarray]:
+    """Coordinate arrays of several polylines joined with NaN separators (one plotly trace)."""
+    if not polylines:
+        return [np.zeros(0) for _ in range(d)]
+    parts = [np.vstack([p, np.full((1, d), np.nan)]) for p in polylines]
+    xy = np.vstack(parts)
+    return [xy[:, i] for i in range(d)]
+
+
+def _problem_traces(problem: Problem, resolution: int) -> list:
+    """Static traces: the design region, the obstacles and the interfaces (with their normals)."""
+    import plotly.graph_objects as go
+
+    d = problem.dim
+    grid = make_grid(problem.domain, resolution)
+    pts = torch.as_tensor(grid.points(), dtype=torch.float64)
+    traces = []
+    gen = torch.Generator().manual_seed(0)
+    if d == 2:
+        for ob in problem.obstacles:
+            with torch.no_grad():
+                v = ob.sdf(pts).numpy().reshape(grid.shape)
+            x, y = _lines([np.vstack([c, c[:1]]) for c in _contours(v, grid)], 2)
+            traces.append(go.Scatter(x=x, y=y, mode="lines", fill="toself", fillcolor="rgba(150,150,150,0.5)",
+                                     line={"color": "#888888", "width": 1}, name="obstacle", hoverinfo="skip"))
+        if problem.design_region is not None:
+            with torch.no_grad():
+                v = problem.design_region.sdf(pts).numpy().reshape(grid.shape)
+            x, y = _lines(_contours(v, grid), 2)
+            traces.append(go.Scatter(x=x, y=y, mode="lines", line={"color": "#444444", "width": 1, "dash": "dash"},
+                                     name="design region", hoverinfo="skip"))
+        span = float(max(h - lo for lo, h in zip(problem.domain.lo, problem.domain.hi)))
+        for i, itf in enumerate(problem.interfaces):
+            x, n = itf.sample(200, generator=gen, dtype=torch.float64)
+            x, n = x.numpy(), n.numpy()
+            traces.append(go.Scatter(x=x[:, 0], y=x[:, 1], mode="markers", marker={"size": 3, "color": "black"},
+                                     name="interfaces", legendgroup="interfaces", showlegend=i == 0, hoverinfo="skip"))
+            if itf.has_normals:
+                sel = slice(None, None, 10)
+                segs = [np.stack([a, a + 0.04 * span * b]) for a, b in zip(x[sel], n[sel])]
+                sx, sy = _lines(segs, 2)
+                traces.append(go.Scatter(x=sx, y=sy, mode="lines", line={"color": "#d62728", "width": 1},
+                                         name="normals", legendgroup="normals", showlegend=i == 0, hoverinfo="skip"))
+        return traces
+    if problem.design_region is not None:
+        with torch.no_grad():
+            v = problem.design_region.sdf(pts).numpy().reshape(grid.shape)
+        env = extract_boundary(v, grid, close=True)
+        V, F = env.vertices.astype(np.float32), env.elements.astype(np.int32)
+        traces.append(go.Mesh3d(x=V[:, 0], y=V[:, 1], z=V[:, 2], i=F[:, 0], j=F[:, 1], k=F[:, 2], opacity=0.12,
+                                color="#999999", name="design region", hoverinfo="skip", showlegend=True))
+    ip = [itf.sample(300, generator=gen, dtype=torch.float64)[0].numpy() for itf in problem.interfaces]
+    if ip:
+        x = np.concatenate(ip).astype(np.float32)
+        traces.append(go.Scatter3d(x=x[:, 0], y=x[:, 1], z=x[:, 2], mode="markers", name="interfaces",
+                                   marker={"size": 1.5, "color": "#d62728"}, hoverinfo="skip"))
+    return traces
+
+
+def _shape_trace(shape, grid, d: int):
+    import plotly.graph_objects as go
+
+    if d == 2:
+        # closed outlines (the values padded with "outside"); holes run the other way round, so
+        # the nonzero fill rule of one SVG path leaves them empty
+        x, y = _lines(_contours(np.pad(shape.values, 1, constant_values=1.0), grid, pad=1), 2)
+        return go.Scatter(x=x, y=y, mode="lines", fill="toself", fillcolor=SHAPE_COLOR, opacity=0.85,
+                          line={"color": "#1f4e79", "width": 1}, name="shape", hoverinfo="skip")
+    b = shape.boundary
+    V, F = b.vertices.astype(np.float32), b.elements.astype(np.int32)
+    if len(F) == 0:
+        V, F = np.zeros((3, 3), np.float32), np.zeros((0, 3), np.int32)
+    return go.Mesh3d(x=V[:, 0], y=V[:, 1], z=V[:, 2], i=F[:, 0], j=F[:, 1], k=F[:, 2], color=SHAPE_COLOR,
+                     flatshading=False, lighting={"ambient": 0.45, "diffuse": 0.7, "specular": 0.1}, name="shape",
+                     hoverinfo="skip")
+
+
+def _slider(latents: ExplorerLatents, names: list[str], prefix: str, axis: int | None = None) -> dict:
+    if axis is None:
+        steps = [{"label": lab, "method": "animate",
+                  "args": [[name], {"mode": "immediate", "frame": {"duration": 0, "redraw": True}, "transition": {"duration": 0}}]}
+                 for lab, name in zip(latents.labels, names)]
+    else:
+        n = latents.grid[axis]
+        steps = [{"label": str(i), "method": "skip", "args": []} for i in range(n)]
+    return {"active": 0, "steps": steps, "currentvalue": {"prefix": prefix}, "pad": {"t": 40 + (50 if axis == 1 else 0)}}
+
+
+_SCRIPT = """
+(function() {
+  var gd = document.getElementById('{plot_id}');
+  var grid = %(grid)s;
+  function show(name, active) {
+    Plotly.animate(gd, [name], {mode: 'immediate', frame: {duration: 0, redraw: true}, transition: {duration: 0}});
+    var upd = {};
+    for (var s = 0; s < active.length; s++) { upd['sliders[' + s + '].active'] = active[s]; }
+    Plotly.relayout(gd, upd);
+  }
+  if (grid) {
+    gd.on('plotly_sliderchange', function() {
+      var a = gd.layout.sliders[0].active, b = gd.layout.sliders[1].active;
+      Plotly.animate(gd, [a + ',' + b], {mode: 'immediate', frame: {duration: 0, redraw: true}, transition: {duration: 0}});
+    });
+  }
+  var m = /step=([0-9]+)(?:,([0-9]+))?/.exec(window.location.hash);
+  if (m) {
+    if (grid) { var i = +m[1], j = +(m[2] || 0); show(i + ',' + j, [i, j]); }
+    else { var k = +m[1]; show(%(names)s[k], [k]); }
+  }
+  document.body.setAttribute('data-explorer-ready', '1');
+})();
+"""
+
+
+def write_explorer(field: Field, Z: Tensor | None, problem: Problem, path: str | Path, *, steps: int = 64,
+                   resolution: int | None = None, title: str = "") -> Path:
+    """Write the explorer page of the shapes ``{field(., z) <= 0}`` to ``path``; returns it.
+
+    Arguments:
+        field: the trained field; Z: its trained latents ``(S, k)`` or None.
+        steps: evenly spaced latent values besides the trained ones (a plane: about that many).
+        resolution: grid cells along the longest domain axis (default :data:`EXPLORER_RESOLUTION`).
+    """
+    import plotly.graph_objects as go
+
+    d = problem.dim
+    res = resolution or EXPLORER_RESOLUTION[d]
+    ctx = prepare_context(problem, res, n_design_boundary_samples=0, seed=0)
+    lat = explorer_latents(Z, steps)
+    if isinstance(field, torch.nn.Module):
+        field.eval()
+    dev = next(field.parameters()).device if isinstance(field, torch.nn.Module) else torch.device("cpu")
+    dt = next(field.parameters()).dtype if isinstance(field, torch.nn.Module) else torch.float32
+    frames, names, shapes = [], [], []
+    for idx, z in enumerate(lat.codes):
+        zz = None if z is None else z.to(dev, dt)
+        shape = extract_shape(field, zz, ctx.grid)
+        m = shape_metrics(shape, ctx, field, zz, only=FEASIBILITY_METRICS)
+        name = str(idx) if lat.grid is None else f"{idx // lat.grid[1]},{idx % lat.grid[1]}"
+        text = f"<b>latent {lat.labels[idx]}</b><br>{_verdict(m, problem)}"
+        frames.append(go.Frame(name=name, data=[_shape_trace(shape, ctx.grid, d)], traces=[0],
+                               layout={"annotations": [_note(text)]}))
+        names.append(name)
+        shapes.append(shape)
+    fig = go.Figure(data=[frames[0].data[0], *_problem_traces(problem, res)], frames=frames if len(frames) > 1 else None)
+    lo, hi = problem.domain.lo, problem.domain.hi
+    layout: dict = {"title": {"text": title}, "annotations": [_note(frames[0].layout.annotations[0].text)],
+                    "margin": {"r": 260}, "height": 620, "legend": {"orientation": "h", "y": -0.02}}
+    if d == 2:
+        layout["xaxis"] = {"range": [lo[0], hi[0]], "constrain": "domain"}
+        layout["yaxis"] = {"range": [lo[1], hi[1]], "scaleanchor": "x", "scaleratio": 1}
+    else:
+        layout["scene"] = {f"{a}axis": {"range": [lo[i], hi[i]]} for i, a in enumerate("xyz")}
+        layout["scene"]["aspectmode"] = "data"
+    if len(frames) > 1:
+        if lat.grid is None:
+            layout["sliders"] = [_slider(lat, names, "latent ")]
+        else:
+            layout["sliders"] = [_slider(lat, names, "first direction ", 0), _slider(lat, names, "second direction ", 1)]
+    fig.update_layout(**layout)
+    script = _SCRIPT % {"grid": "true" if lat.grid is not None else "false", "names": json.dumps(names)}
+    parts = [fig.to_html(include_plotlyjs=True, full_html=False, post_script=script, div_id="explorer",
+                         auto_play=False)]
+    trained = [s for s, t in zip(shapes, lat.trained) if t]
+    if d == 2 and len(trained) > 1:
+        parts.append(_superposition(trained, ctx.grid, problem, res).to_html(include_plotlyjs=False, full_html=False,
+                                                                            div_id="superposition"))
+    html = ("<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>" + (title or "ginn explorer") +
+            "</title></head><body>\n" + "\n".join(parts) + "\n</body></html>\n")
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(html, encoding="utf-8")
+    return path
+
+
+def _note(text: str) -> dict:
+    return {"text": text, "xref": "paper", "yref": "paper", "x": 1.02, "y": 1.0, "xanchor": "left", "yanchor": "top",
+            "align": "left", "showarrow": False, "font": {"size": 12}}
+
+
+def _superposition(shapes: list, grid, problem: Problem, res: int):
+    import plotly.graph_objects as go
+
+    traces = []
+    for i, s in enumerate(shapes):
+        x, y = _lines(_contours(s.values, grid), 2)
+        traces.append(go.Scatter(x=x, y=y, mode="lines", line={"color": SHAPE_COLOR, "width": 1}, opacity=0.6,
+                                 name="trained shapes", legendgroup="shapes", showlegend=i == 0, hoverinfo="skip"))
+    fig = go.Figure(data=[*_problem_traces(problem, res), *traces])
+    lo, hi = problem.domain.lo, problem.domain.hi
+    fig.update_layout(title={"text": f"all {len(shapes)} trained shapes"}, height=520,
+                      xaxis={"range": [lo[0], hi[0]], "constrain": "domain"},
+                      yaxis={"range": [lo[1], hi[1]], "scaleanchor": "x", "scaleratio": 1})
+    return fig

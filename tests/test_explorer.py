@@ -1,0 +1,104 @@
+"""``ginn view``: the latent-space explorer is one self-contained HTML file with one slider position
+per latent value; it renders in a real headless browser and moving the slider changes the picture."""
+
+import json
+import re
+import shutil
+import subprocess
+
+import numpy as np
+import pytest
+import torch
+
+from ginn import runs
+from ginn.viz.explorer import explorer_latents
+
+TINY = ["latents.n_shapes=4", "model.hidden=[16,16]", "sampling.n_domain=128", "sampling.n_outside=64",
+        "sampling.n_interface=32", "sampling.n_boundary=32", "training.threads=1", "training.feasibility_checks=0"]
+
+
+@pytest.fixture(scope="module")
+def run_2d(tmp_path_factory):
+    out = tmp_path_factory.mktemp("view") / "run"
+    spec, cfg = runs.resolve("obstacle", "demo", {"training": {"iterations": 30}}, sets=TINY)
+    runs.train(spec, cfg, out, progress=False, results=False)
+    return out
+
+
+def test_latents_of_the_slider():
+    lat = explorer_latents(torch.tensor([[1.0], [-1.0], [0.0]]), 5)
+    np.testing.assert_allclose([float(z) for z in lat.codes], [-1, -0.5, 0, 0.5, 1])  # the ends coincide
+    assert lat.trained == [True, False, True, False, True] and lat.grid is None
+    assert lat.labels[0] == "-1 trained" and lat.labels[1] == "-0.5"
+    assert explorer_latents(None, 64).codes == [None]
+    # 2D latents: a 3 x 3 grid over the plane of three trained codes, whose corners hold them
+    Z = torch.tensor([[0.0, 0.0, 1.0], [2.0, 0.0, 1.0], [0.0, 2.0, 1.0]])
+    lat = explorer_latents(Z, 9)
+    assert lat.grid == (3, 3) and len(lat.codes) == 9
+    C = torch.stack(lat.codes)
+    np.testing.assert_allclose(C[:, 2].numpy(), 1.0, atol=1e-12)  # in the plane z_2 = 1
+    for z in Z.double():  # every trained code lies within the grid's span
+        d = (C - z).norm(dim=1).min()
+        assert float(d) < 1.5
+
+
+def test_html_has_a_frame_per_latent_and_fetches_nothing(run_2d, tmp_path):
+    path = runs.view(run_2d, tmp_path / "e.html", steps=6)
+    html = path.read_text()
+    # 4 trained latents (-1, -1/3, 1/3, 1) and 6 even ones (-1, -0.6, ..., 1): 8 positions
+    assert html.count('"method":"animate"') == 8
+    assert len(re.findall(r'"name":"\d+","traces":\[0\]', html)) == 8
+    assert html.count("trained") >= 4 and "all 4 trained shapes" in html
+    assert "feasible" in html or "interface" in html  # the verdict beside the picture
+    assert not re.search(r"<script[^>]+src=|<link[^>]+href=", html)  # plotly.js is embedded
+    assert 'id="explorer"' in html and 'id="superposition"' in html
+    data, layout = _figure(html)
+    assert [t["name"] for t in data][:2] == ["shape", "obstacle"] and len(layout["sliders"][0]["steps"]) == 8
+
+
+def test_single_3d_shape_has_one_frame_and_the_envelope(tmp_path):
+    spec, cfg = runs.resolve("bracket", "demo", {"training": {"iterations": 2}},
+                             sets=["model.hidden=[16,16]", "sampling.n_domain=256", "sampling.n_outside=128",
+                                   "sampling.n_interface=128", "sampling.n_band=128", "sampling.n_boundary=64",
+                                   "training.threads=1", "training.feasibility_checks=0"])
+    runs.train(spec, cfg, tmp_path / "b", progress=False, results=False)
+    html = runs.view(tmp_path / "b", steps=64).read_text()
+    data, layout = _figure(html)
+    assert [t["type"] for t in data] == ["mesh3d", "mesh3d", "scatter3d"]  # shape, design region, interfaces
+    assert [t["name"] for t in data] == ["shape", "design region", "interfaces"]
+    assert "sliders" not in layout and data[1]["opacity"] < 0.5
+
+
+def _figure(html: str) -> tuple[list, dict]:
+    """The data and layout of the explorer's plotly figure, decoded from the page."""
+    start = html.index('Plotly.newPlot(') + len('Plotly.newPlot(')
+    text = html[html.index("[", start):]
+    dec = json.JSONDecoder()
+    data, end = dec.raw_decode(text)
+    layout, _ = dec.raw_decode(text[text.index("{", end):])
+    return data, layout
+
+
+def _browser() -> str | None:
+    return shutil.which("chromium") or shutil.which("chromium-browser") or shutil.which("google-chrome")
+
+
+def _shot(browser: str, url: str, out) -> np.ndarray:
+    import matplotlib.image as mpimg
+
+    r = subprocess.run([browser, "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars",
+                        "--window-size=1000,700", "--virtual-time-budget=5000", f"--screenshot={out}", url],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0 and out.exists(), r.stderr[-1000:]
+    return np.asarray(mpimg.imread(str(out)))[..., :3]
+
+
+def test_renders_in_a_browser_and_the_slider_changes_the_picture(run_2d, tmp_path):
+    browser = _browser()
+    if browser is None:
+        pytest.skip("no headless browser: install chromium (the Debian package; .ci/run installs it when it can)")
+    path = runs.view(run_2d, tmp_path / "e.html", steps=6)
+    first = _shot(browser, path.as_uri() + "#step=0", tmp_path / "a.png")
+    last = _shot(browser, path.as_uri() + "#step=7", tmp_path / "b.png")
+    assert first.std() > 0.05 and last.std() > 0.05  # not blank
+    assert np.abs(first - last).mean() > 2e-3  # another shape, another verdict
