@@ -98,7 +98,8 @@ def test_summary_counts_and_worst(obstacle):
 
 
 def test_training_logs_the_checks_and_leaves_the_weights_alone(tmp_path):
-    over = {"training": {"iterations": 40, "log_every": 10, "feasibility_checks": 4}, "latents": {"n_shapes": 2},
+    over = {"training": {"iterations": 40, "log_every": 10, "feasibility_checks": 4, "keep_most_feasible": False},
+            "latents": {"n_shapes": 2},
             "model": {"hidden": [16, 16]}, "sampling": {"n_domain": 128, "n_interface": 64},
             "losses": {"connectedness": {"weight": 0}}}
     spec, cfg = runs.resolve("obstacle", "demo", over)
@@ -168,25 +169,40 @@ class ScriptedVerdicts(CircleFit):
         return {"feasible": k, "shapes": 4, "violations": [{}] * k + [{"interface": {}}] * (4 - k), "worst": {}}
 
 
+def _flat(model) -> torch.Tensor:
+    return torch.cat([p.detach().flatten().clone() for p in model.parameters()])
+
+
 @pytest.mark.parametrize("keep", [True, False])
 def test_run_ends_with_the_weights_of_the_most_feasible_check(tmp_path, keep):
+    """Each check judges the iterate, then the mean of the weights since the previous check; the run
+    ends with the best candidate, the latest of equals (iteration 30's mean: 3, as iteration 20's
+    iterate), which is the mean of the ten iterates before it (to rounding: a running mean)."""
     c = build_config({"seed": 0, "training": {"iterations": 50, "lr": 1e-2, "feasibility_checks": 5,
                                               "keep_most_feasible": keep}})
-    task = ScriptedVerdicts(c, [1, 3, 3, 2, 1])
-    tr = Trainer(task, c, tmp_path, progress=False)
+    # (iterate, mean) per check; without keep_most_feasible only the iterates are judged
+    script = [1, 0, 3, 2, 2, 3, 2, 1, 1, 1] if keep else [1, 3, 2, 2, 1]
+    task = ScriptedVerdicts(c, script)
+    after = []  # the weights after each iteration
+    tr = Trainer(task, c, tmp_path, progress=False, hooks=[lambda t, step, v: after.append(_flat(t.model))])
     tr.train()
-    final = torch.cat([p.detach().flatten() for p in tr.model.parameters()])
+    final = _flat(tr.model)
     events = [json.loads(x) for x in (tmp_path / "metrics.jsonl").read_text().splitlines()]
     restored = [e for e in events if e.get("event") == "restored"]
-    if keep:  # the later of the two checks with 3 feasible shapes (iteration 30)
-        assert torch.equal(final, task.seen[2]) and tr.feasibility["feasible"] == 3
-        assert restored == [{"step": 50, "event": "restored", "from_step": 30, "feasible": 3, "shapes": 4, "instead_of": 1}]
+    checks = [e for e in events if e.get("event") == "feasibility"]
+    if keep:
+        assert torch.equal(final, task.seen[5]) and tr.feasibility["feasible"] == 3
+        torch.testing.assert_close(final, torch.stack(after[20:30]).mean(0), rtol=0, atol=1e-6)
+        assert restored == [{"step": 50, "event": "restored", "from_step": 30, "mean": True, "mean_iterations": 10,
+                             "feasible": 3, "shapes": 4, "instead_of": 1}]
+        assert [e["mean"]["feasible"] for e in checks] == [0, 2, 3, 1, 1]
+        assert all(e["mean"]["iterations"] == 10 for e in checks)
     else:
-        assert torch.equal(final, task.seen[4]) and not restored
-    # nothing to restore when the last check is the best
+        assert torch.equal(final, task.seen[4]) and not restored and all("mean" not in e for e in checks)
+    # nothing to restore when the last check's iterate is the best
     c2 = build_config({"seed": 0, "training": {"iterations": 20, "lr": 1e-2, "feasibility_checks": 2}})
-    t2 = ScriptedVerdicts(c2, [1, 2])
+    t2 = ScriptedVerdicts(c2, [1, 0, 2, 1])
     tr2 = Trainer(t2, c2, None, progress=False)
     tr2.train()
-    assert torch.equal(torch.cat([p.detach().flatten() for p in tr2.model.parameters()]), t2.seen[1])
+    assert torch.equal(_flat(tr2.model), t2.seen[2])
     assert tr2.restored is None

@@ -116,7 +116,9 @@ def _finish_run(trainer: Trainer, task: Task, run_dir: Path, results: bool, say:
     say(f"trained {res.step} iterations in {res.seconds:.1f} s" + (f" ({res.reason})" if res.reason else ""))
     if trainer.restored is not None:
         r = trainer.restored
-        say(f"kept the weights of iteration {r['from_step']}: {r['feasible']} of {r['shapes']} shapes feasible there, "
+        what = (f"the mean of the weights over iterations {r['from_step'] - r['mean_iterations'] + 1}-{r['from_step']}"
+                if r["mean"] else f"the weights of iteration {r['from_step']}")
+        say(f"kept {what}: {r['feasible']} of {r['shapes']} shapes feasible there, "
             f"{r['instead_of']} at the end (training.keep_most_feasible)")
     if trainer.feasibility is not None:
         say(f"{format_feasibility(trainer.feasibility)}\n(checked on a coarse grid; `ginn eval` for every metric)")

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import torch
-from torch import nn
+from torch import Tensor, nn
 
 from ..config import DTYPES, RunConfig, TrainingConfig
 from ..errors import ConfigError, GinnError
@@ -194,6 +194,10 @@ class Trainer:
         self._objective = [0.0, 0]  # sum and count of the objective terms since the last check
         self._objective_before: float | None = None  # their mean over the interval before
         self.best: dict | None = None  # the check with the most feasible shapes: step, summary, weights
+        # keep_most_feasible: the running mean of the weights since the previous check, and its count
+        self._mean: dict[str, Tensor] | None = None
+        self._mean_count = 0
+        self._averaging = (cfg.training.keep_most_feasible and dist is None and cfg.training.feasibility_checks > 0)
         self.restored: dict | None = None  # the 'restored' event, when the run ended with the best weights
         self._tb: TensorBoardLog | None = None  # opened by train() with training.log: [..., tensorboard]
         if "tensorboard" in cfg.training.log and not tensorboard_available():
@@ -221,7 +225,8 @@ class Trainer:
             "task": self.task.state_dict(),
             "rng": rng_state(self.gen),
             "feasibility": {"last": self.feasibility, "objective": list(self._objective),
-                            "objective_before": self._objective_before, "best": self.best},
+                            "objective_before": self._objective_before, "best": self.best,
+                            "mean": self._mean, "mean_count": self._mean_count, "averaging": self._averaging},
         }
         if self.dist is not None:
             state["ranks"] = self.dist.gather_objects({"task": self.task.state_dict(), "rng": rng_state(self.gen)})
@@ -249,6 +254,9 @@ class Trainer:
         self._objective = list(feas.get("objective", [0.0, 0]))
         self._objective_before = feas.get("objective_before")
         self.best = feas.get("best")
+        self._mean = feas.get("mean")
+        self._mean_count = int(feas.get("mean_count", 0))
+        self._averaging = bool(feas.get("averaging", self._averaging))
         self._saved_at = self.elapsed
         self._apply_lr_scale()
 
@@ -369,14 +377,26 @@ class Trainer:
         run (raises :class:`StopRun`)."""
         summary = self.task.feasibility(self.model)
         if summary is None:
+            self._averaging, self._mean = False, None  # a task without tolerances: nothing to choose
             return None
         self.feasibility = summary
-        if self.cfg.training.keep_most_feasible and (self.best is None or summary["feasible"] >= self.best["summary"]["feasible"]):
-            weights = {k: v.detach().clone() for k, v in self.model.state_dict().items()}
-            self.best = {"step": self.step, "summary": summary, "model": weights}
-        self._log({"step": self.step, "event": "feasibility", "feasible": summary["feasible"],
-                   "shapes": summary["shapes"], "worst": summary["worst"],
-                   "violated": _violated_counts(summary)})
+        record = {"step": self.step, "event": "feasibility", "feasible": summary["feasible"], "shapes": summary["shapes"],
+                  "worst": summary["worst"], "violated": _violated_counts(summary)}
+        mean, self._mean, count, self._mean_count = self._mean, None, self._mean_count, 0
+        if self.cfg.training.keep_most_feasible:
+            candidates = [(summary, None)]
+            if mean is not None and count > 1:
+                averaged = self._judge(mean)
+                record["mean"] = {"feasible": averaged["feasible"], "worst": averaged["worst"], "iterations": count}
+                candidates.append((averaged, mean))
+            # the mean wins a tie: it is the centre of what the weights did over the interval
+            top, weights = max(reversed(candidates), key=lambda c: c[0]["feasible"])
+            if self.best is None or top["feasible"] >= self.best["summary"]["feasible"]:
+                if weights is None:
+                    weights = {k: v.detach().clone() for k, v in self.model.state_dict().items()}
+                self.best = {"step": self.step, "summary": top, "model": weights, "mean": top is not summary,
+                             "mean_iterations": count if top is not summary else 0}
+        self._log(record)
         total, count = self._objective
         mean = total / count if count else None
         before, self._objective_before, self._objective = self._objective_before, mean, [0.0, 0]
@@ -386,15 +406,40 @@ class Trainer:
             raise StopRun("completed", f"every shape feasible and the objectives steady at iteration {self.step}")
         return summary
 
+    def _judge(self, weights: dict[str, Tensor]) -> dict:
+        """The feasibility summary of the model with ``weights`` (its own weights are put back)."""
+        own = {k: v.detach().clone() for k, v in self.model.state_dict().items()}
+        self.model.load_state_dict(weights)
+        try:
+            return self.task.feasibility(self.model)
+        finally:
+            self.model.load_state_dict(own)
+
+    def _accumulate_mean(self) -> None:
+        """Add the current weights to the running mean since the previous check."""
+        state = self.model.state_dict()
+        self._mean_count += 1
+        if self._mean is None:
+            self._mean = {k: v.detach().clone() for k, v in state.items()}
+            return
+        w = 1.0 / self._mean_count
+        for k, v in state.items():
+            if v.is_floating_point():
+                self._mean[k].lerp_(v.detach(), w)
+            else:
+                self._mean[k].copy_(v)
+
     def _restore_most_feasible(self) -> None:
-        """``training.keep_most_feasible``: load the weights of the check with the most feasible
-        shapes when the last check (at the end of the run) found fewer."""
+        """``training.keep_most_feasible``: end with the weights of the check (the iterate there,
+        or the mean of the weights since the check before it) that found the most feasible
+        shapes, the latest of equals, when those are not the last iterate's."""
         best, last = self.best, self.feasibility
-        if best is None or last is None or best["summary"]["feasible"] <= last["feasible"]:
+        if best is None or last is None or (best["step"] == self.step and not best["mean"]):
             return
         self.model.load_state_dict(best["model"])
         self.feasibility = best["summary"]
-        self.restored = {"step": self.step, "event": "restored", "from_step": best["step"],
+        self.restored = {"step": self.step, "event": "restored", "from_step": best["step"], "mean": best["mean"],
+                         "mean_iterations": best.get("mean_iterations", 0),
                          "feasible": best["summary"]["feasible"], "shapes": best["summary"]["shapes"],
                          "instead_of": last["feasible"]}
         self._log(self.restored)
@@ -440,6 +485,8 @@ class Trainer:
             nn.utils.clip_grad_norm_(self.model.parameters(), self.cfg.training.grad_clip)
         self.optimizer.step()
         self.scheduler.step()
+        if self._averaging:
+            self._accumulate_mean()
         self.balancer.observe({k: values[k] for k in active if k in values}, step)
         self._track_objective(values, active)
         self.step += 1
