@@ -15,13 +15,16 @@ evaluated like ``ginn eval`` (the problem's tolerances, ``docs/problem-spec.md``
 one row: feasible shapes of all, the worst CD1 (the interface tolerance times ``unit_scale`` in
 brackets), the worst volume outside E, the diversity, and the wall time of training and
 evaluation. The last line is the share of (problem, seed) pairs that end with every shape feasible.
-A JSON copy of the table goes to ``OUT/suite.json``.
+A JSON copy of the table goes to ``OUT/suite.json``, row by row (a row of the same problem
+and seed replaces the earlier one, so several suite processes can share ``--out``). SIGINT or
+SIGTERM stops the suite after checkpointing the run in progress.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -49,8 +52,9 @@ def as_user_spec(spec: ProblemSpec) -> ProblemSpec:
 
 
 def run_one(problem: str, seed: int, out: Path, iterations: int | None, threads: int, resolution: int | None,
-            sets: dict | None = None) -> dict:
-    """Train and evaluate one (problem, seed); the row of the table as a dict."""
+            sets: dict | None = None) -> dict | None:
+    """Train and evaluate one (problem, seed); the row of the table as a dict (None: the training
+    was interrupted)."""
     over: dict = {"seed": seed, "training": {"threads": threads}}
     if iterations is not None:
         over["training"]["iterations"] = iterations
@@ -61,6 +65,8 @@ def run_one(problem: str, seed: int, out: Path, iterations: int | None, threads:
     cfg = spec.config(None, head, over)
     t0 = time.perf_counter()
     outcome = runs.train(spec, cfg, out, progress=False, results=False)
+    if outcome.status != "completed":  # SIGINT / SIGTERM: stop the suite, not only this run
+        return None
     metrics = runs.evaluate(outcome.run_dir, resolution=resolution)
     wall = time.perf_counter() - t0
     feas = metrics["feasibility"]
@@ -110,13 +116,27 @@ def main(argv: list[str] | None = None) -> int:
     for name in names:
         for seed in args.seeds:
             r = run_one(suite[name], seed, out / f"{name}-s{seed}", args.iterations, args.threads, args.resolution, sets)
+            if r is None:
+                print(f"stopped: {name} seed {seed} was interrupted (`ginn resume {out / f'{name}-s{seed}'}` continues it); "
+                      f"the finished rows are in {out / 'suite.json'}", file=sys.stderr)
+                return 130
             rows.append(r)
             print(format_row(r), flush=True)
+            record(out / "suite.json", r)
     ok = sum(r["feasible"] == r["shapes"] for r in rows)
     print(f"every shape feasible in {ok} of {len(rows)} (problem, seed) pairs ({100 * ok / max(len(rows), 1):.0f} %)")
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "suite.json").write_text(json.dumps(rows, indent=2))
     return 0
+
+
+def record(path: Path, row: dict) -> None:
+    """Add ``row`` to the JSON list at ``path``, replacing an earlier row of the same (problem, seed):
+    several suite processes may share one ``--out``."""
+    rows = json.loads(path.read_text()) if path.exists() else []
+    rows = [r for r in rows if (r["problem"], r["seed"]) != (row["problem"], row["seed"])] + [row]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(f".{os.getpid()}.tmp")
+    tmp.write_text(json.dumps(rows, indent=2))
+    tmp.replace(path)
 
 
 if __name__ == "__main__":

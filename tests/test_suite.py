@@ -3,6 +3,7 @@
 import importlib.util
 import json
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 
@@ -46,3 +47,26 @@ def test_a_row_per_run_and_the_rate(suite, tmp_path, capsys):
 def test_unknown_problem_is_one_line_and_exit_2(suite, capsys):
     assert suite.main(["--only", "nope"]) == 2
     assert capsys.readouterr().err.count("\n") == 1
+
+
+def test_rows_from_several_processes_merge_by_problem_and_seed(suite, tmp_path):
+    path = tmp_path / "suite.json"
+    suite.record(path, {"problem": "a", "seed": 0, "feasible": 1})
+    suite.record(path, {"problem": "b", "seed": 0, "feasible": 2})
+    suite.record(path, {"problem": "a", "seed": 0, "feasible": 3})
+    assert json.loads(path.read_text()) == [{"problem": "b", "seed": 0, "feasible": 2}, {"problem": "a", "seed": 0, "feasible": 3}]
+
+
+def test_an_interrupted_run_stops_the_suite(suite, tmp_path, monkeypatch, capsys):
+    """SIGINT / SIGTERM end the run in progress as 'interrupted' (checkpointed): the suite stops there
+    instead of going on with the next problem."""
+    calls = []
+
+    def interrupted(spec, cfg, out, **kw):
+        calls.append(spec.name)
+        return SimpleNamespace(status="interrupted")
+
+    monkeypatch.setattr(suite.runs, "train", interrupted)
+    assert suite.main(["--only", "hook-2d", "plate-2d", "--out", str(tmp_path)]) == 130
+    assert calls == ["hook-2d"] and "interrupted" in capsys.readouterr().err
+    assert not (tmp_path / "suite.json").exists()
