@@ -74,3 +74,7 @@ def test_plot_run_3d_views(tmp_path):
     names = sorted(p.name for p in paths)
     assert names == ["interpolation.png", "shape_000_views.png", "shape_001_views.png", "shapes.png"]
     assert all(is_png(p) for p in paths)
+    # a title (the shape's verdict) puts ink above the views: compare the top strip with and without
+    top = lambda p: 1.0 - matplotlib.image.imread(p)[:40, :, :3].mean()
+    plot_run(balls, Z, P3, tmp_path / "t", resolution=24, views=((20.0, 30.0),), view_titles=["shape 0: feasible", ""])
+    assert top(tmp_path / "t" / "shape_000_views.png") > top(tmp_path / "t" / "shape_001_views.png") + 1e-3

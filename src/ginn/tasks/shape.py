@@ -439,5 +439,11 @@ class ShapeTask(Task):
         run_dir = Path(run_dir)
         if resolution is not None:
             self._checked(resolution, 32)
+        titles = None
+        if self.d == 3:  # each shape's views titled with its verdict (the coarse-grid check)
+            summary = self._checker()(model, self.Z)
+            codes = [None] if self.Z is None else [self.Z[i] for i in range(self.Z.shape[0])]
+            titles = [("" if z is None else f"shape {i} (z = {', '.join(f'{float(v):.3g}' for v in z)}): ")
+                      + verdict_text(v) for i, (z, v) in enumerate(zip(codes, summary["violations"]))]
         return plot_run(model, self.Z, self.problem, run_dir / "figures", metrics_jsonl=run_dir / "metrics.jsonl",
-                        resolution=resolution)
+                        resolution=resolution, view_titles=titles)

@@ -210,14 +210,18 @@ def plot_views(
     envelope: bool = True,
     interfaces: bool = True,
     envelope_resolution: int = 32,
+    title: str = "",
 ) -> Path:
-    """Several views of one 3D shape in one PNG."""
+    """Several views of one 3D shape in one PNG (the design region translucent, the interface
+    samples as dots), titled ``title`` (e.g. its feasibility verdict)."""
     env = _envelope(problem, envelope_resolution) if envelope else None
     ip = _interface_points(problem) if interfaces else None
     fig = new_figure(4 * len(views), 4)
     for i, v in enumerate(views):
         ax = fig.add_subplot(1, len(views), i + 1, projection="3d")
         render_mesh(ax, boundary, problem.domain, color, v, env, ip)
+    if title:
+        fig.suptitle(title, fontsize=10)
     return save_figure(fig, path)
 
 
@@ -463,6 +467,7 @@ def plot_run(
     views: Sequence[tuple[float, float]] = DEFAULT_VIEWS,
     max_view_shapes: int = 16,
     max_render_resolution: int = 64,
+    view_titles: Sequence[str] | None = None,
 ) -> list[Path]:
     """All figures of a run into ``out_dir`` (see the module docstring); returns the paths.
 
@@ -485,5 +490,6 @@ def plot_run(
     if problem.dim == 3:
         codes = _codes(Z)[:max_view_shapes]
         for i, b in enumerate(_boundaries(field, codes, problem.domain, res, cache)):
-            paths.append(plot_views(b, problem, out_dir / f"shape_{i:03d}_views.png", views))
+            title = view_titles[i] if view_titles is not None and i < len(view_titles) else ""
+            paths.append(plot_views(b, problem, out_dir / f"shape_{i:03d}_views.png", views, title=title))
     return paths
