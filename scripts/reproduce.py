@@ -167,7 +167,9 @@ def ginn(args: list[str]) -> None:
     exe = Path(sys.executable).with_name("ginn")
     cmd = [str(exe) if exe.exists() else "ginn", *args]
     print("$", " ".join(shlex.quote(a) for a in cmd), flush=True)
-    subprocess.run(cmd, check=True)
+    code = subprocess.run(cmd).returncode
+    if code != 0:  # ginn has said why in one line
+        sys.exit(code)
 
 
 def do_train(data: dict, ids: list[str], runs: Path) -> None:
