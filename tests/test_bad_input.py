@@ -48,7 +48,6 @@ CASES = {
     "view: unfinished run": (lambda r, t: _running(_copy(r, t / "r")), "ginn view shows completed runs"),
     "view: --steps 0": (lambda r, t: ["view", r, "--steps", "0"], "--steps"),
     "view: --steps x": (lambda r, t: ["view", r, "--steps", "x"], "--steps"),
-    "view: not a shape run": (lambda r, t: _not_a_shape_run(r, t), "ginn view shows shape problems"),
     "--out is a file": (lambda r, t: (t / "f").write_text("x") and ["train", "obstacle", "--out", t / "f", *TINY],
                         "not a directory"),
     "no interfaces": (lambda r, t: (t / "empty.yaml").write_text(
@@ -99,12 +98,6 @@ def _running(run: Path) -> list:
 
     write_status(run, "running", 3, 1.0)
     return ["view", run]
-
-
-def _not_a_shape_run(run: Path, tmp: Path) -> list:
-    spec, cfg = runs.resolve("mirror", "demo", {"training": {"iterations": 2}})
-    runs.train(spec, cfg, tmp / "mirror", progress=False, results=False)
-    return ["view", tmp / "mirror"]
 
 
 def _empty_ckpt(run: Path) -> list:

@@ -51,7 +51,7 @@ def test_html_has_a_frame_per_latent_and_fetches_nothing(run_2d, tmp_path):
     assert html.count("trained") >= 4 and "all 4 trained shapes" in html
     assert "feasible" in html or "interface" in html  # the verdict beside the picture
     assert not re.search(r"<script[^>]+src=|<link[^>]+href=", html)  # plotly.js is embedded
-    assert 'id="explorer"' in html and 'id="superposition"' in html
+    assert 'id="explorer"' in html and 'id="extra0"' in html  # the superposition below
     data, layout = _figure(html)
     assert [t["name"] for t in data][:2] == ["shape", "obstacle"] and len(layout["sliders"][0]["steps"]) == 8
 
@@ -102,3 +102,29 @@ def test_renders_in_a_browser_and_the_slider_changes_the_picture(run_2d, tmp_pat
     last = _shot(browser, path.as_uri() + "#step=7", tmp_path / "b.png")
     assert first.std() > 0.05 and last.std() > 0.05  # not blank
     assert np.abs(first - last).mean() > 2e-3  # another shape, another verdict
+
+
+def test_views_of_the_gray_scott_patterns_and_the_mirror(tmp_path):
+    """Gray-Scott: a heatmap of v per slider position with the relative residual and std(v) of that
+    pattern; the mirror: its profile against x^2 / 4F with the largest deviation."""
+    from ginn.eval.gray_scott import sample_fields
+    from ginn.eval.reference.gray_scott import relative_residual
+
+    spec, cfg = runs.resolve("gray-scott", "quick", {"training": {"iterations": 2}},
+                             sets=["training.threads=1", "latents.n_shapes=2"])
+    out = runs.train(spec, cfg, tmp_path / "gs", progress=False, results=False)
+    html = runs.view(tmp_path / "gs", steps=3).read_text()
+    data, layout = _figure(html)
+    assert data[0]["type"] == "heatmap"
+    run = runs.load_run(tmp_path / "gs")
+    lat = explorer_latents(run.task.Z, 3)
+    assert len(layout["sliders"][0]["steps"]) == len(lat.codes)
+    W = sample_fields(run.model, lat.codes[0].reshape(1, -1), 96)[0]
+    rel = relative_residual(W[0], W[1], run.task.params.gs)["rel"]
+    assert f"residual {rel:.3g}" in layout["annotations"][0]["text"]
+    assert out.status == "completed"
+    spec, cfg = runs.resolve("mirror", "demo", {"training": {"iterations": 3}}, sets=["training.threads=1"])
+    runs.train(spec, cfg, tmp_path / "m", progress=False, results=False)
+    data, layout = _figure(runs.view(tmp_path / "m").read_text())
+    assert [t["name"] for t in data] == ["GINN mirror", "exact x^2 / 4F", "focus"]
+    assert "max |h - exact|" in layout["annotations"][0]["text"] and "sliders" not in layout

@@ -101,7 +101,7 @@ def test_finalize_writes_profile_and_figure(tmp_path):
     task = _task(focus=1.0, n_eval=11)
     paths = task.finalize(Poly(0.25), tmp_path)
     names = sorted(p.name for p in paths)
-    assert names == ["mirror.png", "mirror_profile.csv", "mirror_profile.npy"]
+    assert names == ["explorer.html", "mirror.png", "mirror_profile.csv", "mirror_profile.npy"]
     tab = np.load(tmp_path / "mirror_profile.npy")
     assert tab.shape == (11, 3)
     assert np.allclose(tab[:, 1], tab[:, 2], atol=1e-15)

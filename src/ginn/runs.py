@@ -26,6 +26,8 @@ from .errors import ConfigError, GinnError
 from .eval.feasibility import format_feasibility
 from .problems import ProblemSpec, load_spec
 from .tasks import make_task
+from .tasks.gray_scott import GrayScottTask
+from .tasks.mirror import MirrorTask
 from .tasks.shape import ShapeTask
 from .train.checkpoint import load_checkpoint
 from .train.distributed import DistContext, on_main
@@ -41,6 +43,7 @@ from .train.rundir import (
 from .train.task import Task
 from .train.trainer import Trainer
 from .viz.explorer import write_explorer
+from .viz.explorer_pinn import write_mirror_view, write_pattern_explorer
 
 __all__ = [
     "Run", "Outcome", "is_spec_file", "resolve", "train", "resume", "fit", "load_run",
@@ -341,8 +344,9 @@ def export(run_dir: str | Path, latents: list[list[float]] | None = None, resolu
 
 
 def view(run_dir: str | Path, out: str | Path | None = None, steps: int = 64) -> Path:
-    """The latent-space explorer of a completed shape run (``ginn view``): one self-contained HTML
-    file (:mod:`ginn.viz.explorer`), ``RUN/figures/explorer.html`` unless ``out`` says otherwise."""
+    """The latent-space explorer of a completed run (``ginn view``): one self-contained HTML file
+    (:mod:`ginn.viz.explorer` for shapes, :mod:`ginn.viz.explorer_pinn` for Gray-Scott patterns and
+    the mirror), ``RUN/figures/explorer.html`` unless ``out`` says otherwise."""
     run_dir = Path(run_dir)
     st = read_status(run_dir)
     if st.status not in ("completed", "unknown"):
@@ -351,11 +355,17 @@ def view(run_dir: str | Path, out: str | Path | None = None, steps: int = 64) ->
     if steps < 1:
         raise ConfigError(f"--steps must be at least 1, got {steps}")
     run = load_run(run_dir)
-    if not isinstance(run.task, ShapeTask):
-        raise ConfigError(f"{run_dir}: ginn view shows shape problems; this run is a {run.task.kind} problem "
-                          "(`ginn plot` draws its figures)")
     path = Path(out) if out is not None else run.path / "figures" / "explorer.html"
-    return write_explorer(run.model, run.task.Z, run.task.problem, path, steps=steps, title=f"{run.spec.name}: {run.path.name}")
+    title = f"{run.spec.name}: {run.path.name}"
+    task = run.task
+    if isinstance(task, ShapeTask):
+        return write_explorer(run.model, task.Z, task.problem, path, steps=steps, title=title)
+    if isinstance(task, GrayScottTask):
+        Z = task.Z if task.Z is not None else task.default_latents()
+        return write_pattern_explorer(run.model, Z, task.params.gs, path, steps=steps, title=title)
+    if isinstance(task, MirrorTask):
+        return write_mirror_view(run.model, task.params, path, title=title)
+    raise ConfigError(f"{run_dir}: ginn view has no view for a {task.kind} problem (`ginn plot` draws its figures)")
 
 
 def plot(run_dir: str | Path, resolution: int | None = None) -> list[Path]:

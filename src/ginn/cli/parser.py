@@ -65,7 +65,7 @@ def build_parser() -> argparse.ArgumentParser:
     pl.add_argument("run_dir")
     pl.add_argument("--resolution", type=count(2), default=None, help="grid cells along the longest axis")
 
-    v = sub.add_parser("view", help="write the latent-space explorer of a shape run (one self-contained HTML file)")
+    v = sub.add_parser("view", help="write the latent-space explorer of a run (one self-contained HTML file)")
     v.add_argument("run_dir")
     v.add_argument("--out", help="the HTML file (default RUN/figures/explorer.html)")
     v.add_argument("--steps", type=count(1), default=64, help="evenly spaced latent values besides the trained ones (default 64)")

@@ -22,6 +22,7 @@ from ..eval.mirror import evaluate_mirror, exact_height, focus_distance, profile
 from ..fields import evaluate
 from ..models import MLP
 from ..train.task import Task
+from ..viz.explorer_pinn import write_mirror_view
 from ..viz.mirror import plot_mirror
 
 __all__ = ["MirrorTask", "parse_mirror_params", "sample_rays", "write_profile"]
@@ -96,6 +97,7 @@ class MirrorTask(Task):
         run_dir.mkdir(parents=True, exist_ok=True)
         paths = write_profile(model, self.params, run_dir)
         paths.append(plot_mirror(model, self.params, run_dir / "mirror.png"))
+        paths.append(write_mirror_view(model, self.params, run_dir / "figures" / "explorer.html", title=f"mirror: {run_dir.name}"))
         return paths
 
     def evaluate(self, model: nn.Module, resolution: int | None = None, out_dir: Path | None = None) -> dict:

@@ -36,7 +36,7 @@ from ..extract.grid import make_grid
 from ..fields import Field
 from ..problems.problem import Problem
 
-__all__ = ["ExplorerLatents", "explorer_latents", "write_explorer", "EXPLORER_RESOLUTION"]
+__all__ = ["ExplorerLatents", "explorer_latents", "write_explorer", "write_page", "add_sliders", "note", "EXPLORER_RESOLUTION"]
 
 #: Grid cells along the longest domain axis of the pictures (and of the metrics beside them).
 EXPLORER_RESOLUTION = {2: 128, 3: 40}
@@ -63,8 +63,8 @@ class ExplorerLatents:
 
 def explorer_latents(Z: Tensor | None, steps: int) -> ExplorerLatents:
     """The slider positions for trained latents ``Z (S, k)`` (None: one shape) and ``steps`` values."""
-    if Z is None:
-        return ExplorerLatents([None], ["the shape"], [True])
+    if Z is None or Z.shape[1] == 0:
+        return ExplorerLatents([None if Z is None else Z[0]], ["the shape" if Z is None else "the pattern"], [True])
     Z = Z.detach().double().cpu()
     if Z.shape[1] == 1:
         z = Z[:, 0]
@@ -256,12 +256,12 @@ def write_explorer(field: Field, Z: Tensor | None, problem: Problem, path: str |
         name = str(idx) if lat.grid is None else f"{idx // lat.grid[1]},{idx % lat.grid[1]}"
         text = f"<b>latent {lat.labels[idx]}</b><br>{_verdict(m, problem)}"
         frames.append(go.Frame(name=name, data=[_shape_trace(shape, ctx.grid, d)], traces=[0],
-                               layout={"annotations": [_note(text)]}))
+                               layout={"annotations": [note(text)]}))
         names.append(name)
         shapes.append(shape)
     fig = go.Figure(data=[frames[0].data[0], *_problem_traces(problem, res)], frames=frames if len(frames) > 1 else None)
     lo, hi = problem.domain.lo, problem.domain.hi
-    layout: dict = {"title": {"text": title}, "annotations": [_note(frames[0].layout.annotations[0].text)],
+    layout: dict = {"title": {"text": title}, "annotations": [note(frames[0].layout.annotations[0].text)],
                     "margin": {"r": 260}, "height": 620, "legend": {"orientation": "h", "y": -0.02}}
     if d == 2:
         layout["xaxis"] = {"range": [lo[0], hi[0]], "constrain": "domain"}
@@ -269,19 +269,30 @@ def write_explorer(field: Field, Z: Tensor | None, problem: Problem, path: str |
     else:
         layout["scene"] = {f"{a}axis": {"range": [lo[i], hi[i]]} for i, a in enumerate("xyz")}
         layout["scene"]["aspectmode"] = "data"
-    if len(frames) > 1:
-        if lat.grid is None:
-            layout["sliders"] = [_slider(lat, names, "latent ")]
-        else:
-            layout["sliders"] = [_slider(lat, names, "first direction ", 0), _slider(lat, names, "second direction ", 1)]
+    add_sliders(layout, lat, names)
     fig.update_layout(**layout)
+    trained = [s for s, t in zip(shapes, lat.trained) if t]
+    extra = [_superposition(trained, ctx.grid, problem, res)] if d == 2 and len(trained) > 1 else []
+    return write_page(fig, lat, names, path, title, extra)
+
+
+def add_sliders(layout: dict, lat: ExplorerLatents, names: list[str]) -> None:
+    """The slider(s) of ``lat`` into a figure's ``layout`` (none for a single position)."""
+    if len(names) <= 1:
+        return
+    if lat.grid is None:
+        layout["sliders"] = [_slider(lat, names, "latent ")]
+    else:
+        layout["sliders"] = [_slider(lat, names, "first direction ", 0), _slider(lat, names, "second direction ", 1)]
+
+
+def write_page(fig, lat: ExplorerLatents, names: list[str], path: str | Path, title: str = "", extra=()) -> Path:
+    """The self-contained page: ``fig`` (frames named ``names``, the sliders of ``lat``) with the
+    script that follows the sliders and the ``#step=`` fragment, then the figures ``extra``."""
     script = _SCRIPT % {"grid": "true" if lat.grid is not None else "false", "names": json.dumps(names)}
     parts = [fig.to_html(include_plotlyjs=True, full_html=False, post_script=script, div_id="explorer",
                          auto_play=False)]
-    trained = [s for s, t in zip(shapes, lat.trained) if t]
-    if d == 2 and len(trained) > 1:
-        parts.append(_superposition(trained, ctx.grid, problem, res).to_html(include_plotlyjs=False, full_html=False,
-                                                                            div_id="superposition"))
+    parts += [f.to_html(include_plotlyjs=False, full_html=False, div_id=f"extra{i}") for i, f in enumerate(extra)]
     html = ("<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>" + (title or "ginn explorer") +
             "</title></head><body>\n" + "\n".join(parts) + "\n</body></html>\n")
     path = Path(path)
@@ -290,7 +301,8 @@ def write_explorer(field: Field, Z: Tensor | None, problem: Problem, path: str |
     return path
 
 
-def _note(text: str) -> dict:
+def note(text: str) -> dict:
+    """A text box right of the plot (the verdict beside the picture)."""
     return {"text": text, "xref": "paper", "yref": "paper", "x": 1.02, "y": 1.0, "xanchor": "left", "yanchor": "top",
             "align": "left", "showarrow": False, "font": {"size": 12}}
 

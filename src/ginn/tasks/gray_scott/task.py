@@ -42,6 +42,7 @@ from ...fields import evaluate, laplacian
 from ...losses.diversity import aggregate
 from ...models import ConcatConditioning, FourierMLP, PeriodicEncoding, Siren
 from ...train.task import Task
+from ...viz.explorer_pinn import write_pattern_explorer
 from ...viz.gray_scott import write_patterns
 from .finite_diff import fourier_shift, grid_derivatives, spectral_laplacian
 
@@ -301,8 +302,11 @@ class GrayScottTask(Task):
             return fourier_shift(c[2], off - c[1])
 
     def finalize(self, model: nn.Module, run_dir: Path) -> list[Path]:
-        Z = self.Z if self.Z is not None else self._default_latents()
-        return write_patterns(model, Z, Path(run_dir), self.params.resolution, self.params.n_interpolation)
+        Z = self.Z if self.Z is not None else self.default_latents()
+        paths = write_patterns(model, Z, Path(run_dir), self.params.resolution, self.params.n_interpolation)
+        paths.append(write_pattern_explorer(model, Z, self.params.gs, Path(run_dir) / "figures" / "explorer.html",
+                                            title=f"gray-scott: {Path(run_dir).name}"))
+        return paths
 
     def evaluate(self, model: nn.Module, resolution: int | None = None, out_dir: Path | None = None) -> dict:
         """The four independent checks of :func:`ginn.eval.gray_scott.verify_run` on every trained latent."""
@@ -315,7 +319,9 @@ class GrayScottTask(Task):
     def format_metrics(self, metrics: dict) -> str:
         return json.dumps({k: v for k, v in metrics.items() if k != "latents"}, indent=2, default=float)
 
-    def _default_latents(self) -> Tensor:
+    def default_latents(self) -> Tensor:
+        """Fixed latents in the configured range, for the figures and views of a run whose latents
+        are drawn afresh every iteration (``(max(S, 2), k)``; ``(1, 0)`` without latents)."""
         lat = self.cfg.latents
         k = lat.dim if (lat.n_shapes > 1 or lat.random) else 0
         if k == 0:
