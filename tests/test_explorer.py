@@ -128,3 +128,13 @@ def test_views_of_the_gray_scott_patterns_and_the_mirror(tmp_path):
     data, layout = _figure(runs.view(tmp_path / "m").read_text())
     assert [t["name"] for t in data] == ["GINN mirror", "exact x^2 / 4F", "focus"]
     assert "max |h - exact|" in layout["annotations"][0]["text"] and "sliders" not in layout
+
+
+def test_plateau_view_shows_the_reference_surface(tmp_path):
+    spec, cfg = runs.resolve("plateau", "demo", {"training": {"iterations": 2}},
+                             sets=["model.hidden=[16,16]", "sampling.n_domain=256", "sampling.n_boundary=64",
+                                   "training.threads=1"])
+    runs.train(spec, cfg, tmp_path / "p", progress=False, results=False)
+    data, _ = _figure(runs.view(tmp_path / "p").read_text())
+    ref = [t for t in data if t["name"] == "reference minimal surface"]
+    assert len(ref) == 1 and ref[0]["type"] == "mesh3d" and ref[0]["opacity"] < 1

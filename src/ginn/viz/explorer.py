@@ -9,7 +9,8 @@ directions (two sliders; ``n = ceil(sqrt(steps))``). For each value the page sho
 * 2D: the filled shape over the domain, the design region's outline, the obstacles (grey) and the
   interfaces with their prescribed normals; below, every trained shape's outline superposed
   (the paper's Figure 1);
-* 3D: the extracted mesh, the design region as a translucent surface and the interface samples;
+* 3D: the extracted mesh, the design region as a translucent surface and the interface samples
+  (Plateau's problem: also the reference minimal surface, translucent);
 
 and beside it the shape's feasibility verdict (``ginn.eval.feasibility``) with its CD1, volume
 outside E and number of pieces, measured on the same grid the picture comes from.
@@ -31,6 +32,7 @@ from torch import Tensor
 
 from ..eval.feasibility import FEASIBILITY_METRICS, verdict_text, violations
 from ..eval.metrics import extract_shape, prepare_context, shape_metrics
+from ..eval.reference.minimal_surface import plateau_reference
 from ..extract.boundary import extract_boundary
 from ..extract.grid import make_grid
 from ..fields import Field
@@ -166,6 +168,11 @@ def _problem_traces(problem: Problem, resolution: int) -> list:
         V, F = env.vertices.astype(np.float32), env.elements.astype(np.int32)
         traces.append(go.Mesh3d(x=V[:, 0], y=V[:, 1], z=V[:, 2], i=F[:, 0], j=F[:, 1], k=F[:, 2], opacity=0.12,
                                 color="#999999", name="design region", hoverinfo="skip", showlegend=True))
+    if problem.reference == "minimal-surface":  # Plateau's problem: the discrete minimal surface to compare with
+        ref = plateau_reference(rings=16)
+        V, F = ref.V.astype(np.float32), ref.F.astype(np.int32)
+        traces.append(go.Mesh3d(x=V[:, 0], y=V[:, 1], z=V[:, 2], i=F[:, 0], j=F[:, 1], k=F[:, 2], opacity=0.35,
+                                color="#e07b39", name="reference minimal surface", hoverinfo="skip", showlegend=True))
     ip = [itf.sample(300, generator=gen, dtype=torch.float64)[0].numpy() for itf in problem.interfaces]
     if ip:
         x = np.concatenate(ip).astype(np.float32)
