@@ -382,20 +382,20 @@ class Trainer:
         self.feasibility = summary
         record = {"step": self.step, "event": "feasibility", "feasible": summary["feasible"], "shapes": summary["shapes"],
                   "worst": summary["worst"], "violated": _violated_counts(summary)}
-        mean, self._mean, count, self._mean_count = self._mean, None, self._mean_count, 0
+        interval_mean, n_mean, self._mean, self._mean_count = self._mean, self._mean_count, None, 0
         if self.cfg.training.keep_most_feasible:
             candidates = [(summary, None)]
-            if mean is not None and count > 1:
-                averaged = self._judge(mean)
-                record["mean"] = {"feasible": averaged["feasible"], "worst": averaged["worst"], "iterations": count}
-                candidates.append((averaged, mean))
+            if interval_mean is not None and n_mean > 1:
+                averaged = self._judge(interval_mean)
+                record["mean"] = {"feasible": averaged["feasible"], "worst": averaged["worst"], "iterations": n_mean}
+                candidates.append((averaged, interval_mean))
             # the mean wins a tie: it is the centre of what the weights did over the interval
             top, weights = max(reversed(candidates), key=lambda c: c[0]["feasible"])
             if self.best is None or top["feasible"] >= self.best["summary"]["feasible"]:
                 if weights is None:
                     weights = {k: v.detach().clone() for k, v in self.model.state_dict().items()}
                 self.best = {"step": self.step, "summary": top, "model": weights, "mean": top is not summary,
-                             "mean_iterations": count if top is not summary else 0}
+                             "mean_iterations": n_mean if top is not summary else 0}
         self._log(record)
         total, count = self._objective
         mean = total / count if count else None
@@ -434,11 +434,11 @@ class Trainer:
         or the mean of the weights since the check before it) that found the most feasible
         shapes, the latest of equals, when those are not the last iterate's."""
         best, last = self.best, self.feasibility
-        if best is None or last is None or (best["step"] == self.step and not best["mean"]):
+        if best is None or last is None or (best["step"] == self.step and not best.get("mean", False)):
             return
         self.model.load_state_dict(best["model"])
         self.feasibility = best["summary"]
-        self.restored = {"step": self.step, "event": "restored", "from_step": best["step"], "mean": best["mean"],
+        self.restored = {"step": self.step, "event": "restored", "from_step": best["step"], "mean": best.get("mean", False),
                          "mean_iterations": best.get("mean_iterations", 0),
                          "feasible": best["summary"]["feasible"], "shapes": best["summary"]["shapes"],
                          "instead_of": last["feasible"]}
