@@ -1,5 +1,6 @@
 """``ginn view``: the latent-space explorer is one self-contained HTML file with one slider position
-per latent value; it renders in a real headless browser and moving the slider changes the picture."""
+per latent value; it renders in a real headless browser that cannot resolve any host (no network
+needed), and moving the slider changes the picture."""
 
 import json
 import re
@@ -86,8 +87,10 @@ def _browser() -> str | None:
 def _shot(browser: str, url: str, out) -> np.ndarray:
     import matplotlib.image as mpimg
 
+    # every host name resolves to nothing: a page that needed the network would not draw
     r = subprocess.run([browser, "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars",
-                        "--window-size=1000,700", "--virtual-time-budget=5000", f"--screenshot={out}", url],
+                        "--host-resolver-rules=MAP * ~NOTFOUND", "--window-size=1000,700",
+                        "--virtual-time-budget=5000", f"--screenshot={out}", url],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 0 and out.exists(), r.stderr[-1000:]
     return np.asarray(mpimg.imread(str(out)))[..., :3]
