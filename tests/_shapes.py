@@ -77,6 +77,11 @@ class VerticalSegments(Interface):
     def component_of(self, x):
         return (x[:, :1] - self.xs.to(x)[None, :]).abs().argmin(dim=1)
 
+    def distance(self, x):
+        dx = (x[:, :1] - self.xs.to(x)[None, :]).abs()
+        dy = (x[:, 1:2].abs() - self.half).clamp_min(0)
+        return torch.sqrt(dx * dx + dy * dy).min(dim=1).values
+
 
 def union(*sdfs):
     def f(x, z=None):

@@ -86,15 +86,21 @@ def test_check_and_eval_give_the_same_verdicts(obstacle):
 
 
 def test_summary_counts_and_worst(obstacle):
-    shapes = [{"interface_cd1": c, "volume_outside": v, "b0_in_design_region": b, "connected_interfaces_share": 1.0}
-              for c, v, b in [(1e-3, 0.0, 1), (9e-3, 1e-3, 1), (2e-3, 0.2, 3)]]
+    # the verdict bounds the volume outside E beyond the interface tolerance: shape 0 is over the
+    # bound only within it (0.01 > 0.005 counted as volume_outside, 0 off the interfaces)
+    shapes = [{"interface_cd1": c, "volume_outside": v, "volume_outside_off_interfaces": w, "b0_in_design_region": b,
+               "connected_interfaces_share": 1.0}
+              for c, v, w, b in [(1e-3, 0.01, 0.0, 1), (9e-3, 1e-3, 1e-3, 1), (2e-3, 0.2, 0.19, 3)]]
     s = summarize(shapes, obstacle)
     assert s["feasible"] == 1 and s["shapes"] == 3
-    assert s["worst"] == {"interface_cd1": 9e-3, "volume_outside": 0.2, "b0_in_design_region": 3.0}
+    assert s["worst"] == {"interface_cd1": 9e-3, "volume_outside": 0.19, "b0_in_design_region": 3.0}
     text = format_feasibility(s)
     assert text.splitlines()[0] == "feasible shapes: 1 of 3"
-    assert "shape 1: interface 0.009 > 0.005" in text and "shape 2: volume_outside 0.2 > 0.005; connected: 3 pieces" in text
+    assert "shape 1: interface 0.009 > 0.005" in text and "shape 2: volume_outside 0.19 > 0.005; connected: 3 pieces" in text
     assert set(FEASIBILITY_METRICS) <= set(shapes[0])
+    # metrics without the off-interface volume (older runs) are judged by volume_outside
+    old = [{k: v for k, v in m.items() if k != "volume_outside_off_interfaces"} for m in shapes]
+    assert summarize(old, obstacle)["feasible"] == 0 and summarize(old, obstacle)["worst"]["volume_outside"] == 0.2
 
 
 def test_training_logs_the_checks_and_leaves_the_weights_alone(tmp_path):

@@ -235,3 +235,22 @@ def test_components_in_design_region_split_by_an_obstacle():
     vol_E = 1.44 - math.pi * 0.01
     assert s["disconnected_volume_in_design_region"] == pytest.approx((0.288 - cut) / 2 / vol_E, rel=0.02)
     assert s["volume_outside"] == pytest.approx(cut / (2.0 - vol_E), rel=0.03)
+
+
+@pytest.mark.parametrize("res", [256, 512, 1024])
+def test_volume_outside_off_interfaces_ignores_the_interface_tolerance(res):
+    # The obstacle's layout: interfaces x = +-0.9 (|y| <= 0.4) on dE, tolerance h = 0.005. The bar
+    # overshoots both interfaces by 0.003 < h, and a 0.2 x 0.05 bump leaves E at the top.
+    X = Box((-1.0, -0.5), (1.0, 0.5))
+    P = Problem("t", X, design_region=Rect((-0.9, -0.4), (0.9, 0.4)), interfaces=(VerticalSegments([-0.9, 0.9], 0.4),))
+    f = union(Rect((-0.903, -0.2), (0.903, 0.2)).sdf, Rect((-0.1, 0.3), (0.1, 0.45)).sdf)
+    s = evaluate_shapes(f, None, P, res)["shapes"][0]
+    vol_out = 2.0 - 1.44
+    h = 2.0 / res
+    # node counting moves each of the bump's three outside edges by at most h / 2
+    assert s["volume_outside_off_interfaces"] == pytest.approx(0.01 / vol_out, abs=0.3 * h / vol_out)
+    # volume_outside also counts the node columns between x = 0.9 and 0.903: none at 256 cells
+    # (nodes at 0.8984, 0.9062), one at 512 (0.9023), two at 1024 (0.9004, 0.9023)
+    columns = {256: 0, 512: 1, 1024: 2}[res]
+    sliver = s["volume_outside"] - s["volume_outside_off_interfaces"]
+    assert sliver == pytest.approx(2 * columns * 0.4 * h / vol_out, rel=0.05, abs=1e-12)

@@ -3,7 +3,9 @@
 A shape is feasible when every constraint of :class:`~ginn.problems.problem.Tolerances` holds:
 
 * ``interface``: ``interface_cd1 <= tolerances.interface * unit_scale`` (problems with interfaces);
-* ``volume_outside``: ``volume_outside <= tolerances.volume_outside``;
+* ``volume_outside``: ``volume_outside_off_interfaces <= tolerances.volume_outside`` (the volume
+  outside E beyond the interface tolerance of the interfaces, :mod:`ginn.eval.metrics`; metrics
+  without it, e.g. of older runs, are judged by ``volume_outside``);
 * ``connected`` (when required): ``b0_in_design_region == 1`` and ``connected_interfaces_share == 1``.
 
 The same function judges the final evaluation (``ginn eval``, at the evaluation resolution) and
@@ -25,11 +27,19 @@ from ..fields import Field
 from ..problems.problem import Problem
 from .metrics import MetricContext, extract_shape, prepare_context, shape_metrics
 
-__all__ = ["FEASIBILITY_METRICS", "violations", "summarize", "verdict_text", "format_feasibility", "short_summary", "check_feasibility",
-           "FeasibilityCheck"]
+__all__ = ["FEASIBILITY_METRICS", "judged_volume_outside", "violations", "summarize", "verdict_text",
+           "format_feasibility", "short_summary", "check_feasibility", "FeasibilityCheck"]
 
 #: The metrics the verdict reads.
-FEASIBILITY_METRICS = ("b0_in_design_region", "connected_interfaces_share", "interface_cd1", "volume_outside")
+FEASIBILITY_METRICS = ("b0_in_design_region", "connected_interfaces_share", "interface_cd1", "volume_outside",
+                       "volume_outside_off_interfaces")
+
+
+def judged_volume_outside(metrics: dict) -> float | None:
+    """The volume outside E that the verdict bounds: ``volume_outside_off_interfaces`` where
+    measured, else ``volume_outside``."""
+    v = metrics.get("volume_outside_off_interfaces")
+    return metrics.get("volume_outside") if v is None else v
 
 
 def violations(metrics: dict, problem: Problem) -> dict[str, dict]:
@@ -46,7 +56,7 @@ def violations(metrics: dict, problem: Problem) -> dict[str, dict]:
         # value None: no boundary to measure from (an empty shape)
         value = float(cd1) if cd1 is not None and math.isfinite(cd1) else None
         out["interface"] = {"value": value, "bound": tol.interface * problem.unit_scale}
-    vol = metrics.get("volume_outside")
+    vol = judged_volume_outside(metrics)
     if vol is not None and vol > tol.volume_outside:
         out["volume_outside"] = {"value": float(vol), "bound": tol.volume_outside}
     if tol.connected:
@@ -61,13 +71,15 @@ def violations(metrics: dict, problem: Problem) -> dict[str, dict]:
 
 
 def summarize(shapes: list[dict], problem: Problem) -> dict:
-    """``{"feasible": k, "shapes": S, "violations": [per shape], "worst": {metric: value}}`` for
-    the per-shape metric dicts ``shapes`` (``worst``: the largest CD1 and volume outside E, and
-    the most pieces inside E)."""
+    """``{"feasible": k, "shapes": S, "violations": [per shape], "worst": {name: value}}`` for
+    the per-shape metric dicts ``shapes`` (``worst``: the largest CD1, the largest volume outside
+    E that the verdict bounds (:func:`judged_volume_outside`) as ``volume_outside``, and the most
+    pieces inside E)."""
     per = [violations(m, problem) for m in shapes]
     worst: dict = {}
+    judged = [{**m, "volume_outside": judged_volume_outside(m)} for m in shapes]
     for k in ("interface_cd1", "volume_outside", "b0_in_design_region"):
-        vals = [m.get(k) for m in shapes if m.get(k) is not None]
+        vals = [m.get(k) for m in judged if m.get(k) is not None]
         if vals:
             worst[k] = max(float(v) for v in vals)
     return {"feasible": sum(not v for v in per), "shapes": len(shapes), "violations": per, "worst": worst}

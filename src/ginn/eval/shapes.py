@@ -43,6 +43,7 @@ METRIC_LABELS = {
     "interface_cd1": "↓ CD1(Ω, I)",
     "boundary_overlap": "↓ vol(Ω ∩ ∂E) / vol(∂E)",
     "volume_outside": "↓ vol(Ω \\ E) / vol(X \\ E)",
+    "volume_outside_off_interfaces": "↓ vol(Ω \\ (E ∪ I_h)) / vol(X \\ E)",
     "surface_strain": "↓ E_strain(Ω)",
     "diversity_mean": "↑ δ_mean(S)",
 }

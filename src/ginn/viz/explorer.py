@@ -30,7 +30,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from ..eval.feasibility import FEASIBILITY_METRICS, verdict_text, violations
+from ..eval.feasibility import FEASIBILITY_METRICS, judged_volume_outside, verdict_text, violations
 from ..eval.metrics import extract_shape, prepare_context, shape_metrics
 from ..eval.reference.minimal_surface import plateau_reference
 from ..extract.boundary import extract_boundary
@@ -100,11 +100,11 @@ def explorer_latents(Z: Tensor | None, steps: int) -> ExplorerLatents:
 
 def _verdict(m: dict, problem: Problem) -> str:
     lines = verdict_text(violations(m, problem)).replace(", ", "; ").split("; ")
-    cd1, vol, b0 = m.get("interface_cd1"), m.get("volume_outside"), m.get("b0_in_design_region")
+    cd1, vol, b0 = m.get("interface_cd1"), judged_volume_outside(m), m.get("b0_in_design_region")
     if cd1 is not None and problem.interfaces:
         lines.append(f"CD1 {cd1:.2e} (bound {problem.tolerances.interface * problem.unit_scale:.2e})")
     if vol is not None:
-        lines.append(f"volume outside E {vol:.2e} (bound {problem.tolerances.volume_outside:.2e})")
+        lines.append(f"volume outside E off the interfaces {vol:.2e} (bound {problem.tolerances.volume_outside:.2e})")
     if b0 is not None:
         lines.append(f"pieces inside E {int(b0)}")
     return "<br>".join(lines)
