@@ -38,7 +38,7 @@ def test_weights_scale_with_the_size_of_the_domain(half):
     assert cfg.connectedness.margin == pytest.approx(0.02 * half)
     assert (cfg.losses.containment_power, cfg.losses.containment_slope) == (1, 1.0)
     # scale-free terms and the schedule do not depend on it
-    assert (cfg.losses.normal.weight, cfg.losses.eikonal.weight, cfg.training.iterations) == (10.0, 0.1, 4000)
+    assert (cfg.losses.normal.weight, cfg.losses.eikonal.weight, cfg.training.iterations) == (10.0, 0.1, 2000)
 
 
 def test_the_longest_side_sets_the_scale_and_3d_gets_its_budget():
