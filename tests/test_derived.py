@@ -41,6 +41,17 @@ def test_weights_scale_with_the_size_of_the_domain(half):
     assert (cfg.losses.normal.weight, cfg.losses.eikonal.weight, cfg.training.iterations) == (10.0, 0.1, 2000)
 
 
+def test_a_stated_budget_keeps_the_schedule_in_thirds():
+    spec = _spec(1.0)
+    assert spec.config().training.lr_decay_every == 666  # 2000 // 3
+    t = spec.config(None, {"training": {"iterations": 8000}}).training
+    assert (t.iterations, t.lr_decay_every) == (8000, 2666)
+    t = spec.config(None, {"training": {"iterations": 8000, "lr_decay_every": 100}}).training
+    assert (t.iterations, t.lr_decay_every) == (8000, 100)  # a stated schedule wins
+    t = spec.config(None, {"training": {"iterations": 8000}}, {"training": {"iterations": 300}}).training
+    assert (t.iterations, t.lr_decay_every) == (300, 100)  # the last stated budget
+
+
 def test_the_longest_side_sets_the_scale_and_3d_gets_its_budget():
     spec = validate_spec({"name": "t", "geometry": {"dim": 3, "domain": {"lo": [0, 0, 0], "hi": [1, 6, 2]}}})
     d, why = derived_defaults(spec.build())

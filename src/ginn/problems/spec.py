@@ -122,8 +122,23 @@ class ProblemSpec(BaseModel):
         if preset is not None and preset not in self.presets:
             avail = ", ".join(sorted(self.presets)) or "none"
             raise ConfigError(f"unknown preset '{preset}' for problem '{self.name}' (available: {avail})")
-        return build_config(self._head(preset), self.derived()[0], self.defaults, *self.preset_layers(preset),
-                            *overrides)
+        upper = [self.defaults, *self.preset_layers(preset), *overrides]
+        return build_config(self._head(preset), self._derived_for(upper), *upper)
+
+    def _derived_for(self, upper: list[dict]) -> dict:
+        """The derived layer under the partial configurations ``upper``: a budget stated there
+        (``training.iterations``) without ``training.lr_decay_every`` keeps the derived schedule's
+        shape (the learning rate halved every third of the run)."""
+        derived = self.derived()[0]
+        stated = [layer.get("training") or {} for layer in upper if isinstance(layer, dict)]
+        iterations = [t["iterations"] for t in stated if isinstance(t, dict) and "iterations" in t]
+        if ("lr_decay_every" not in derived.get("training", {}) or not iterations
+                or any(isinstance(t, dict) and "lr_decay_every" in t for t in stated)):
+            return derived
+        n = iterations[-1]
+        if not isinstance(n, int) or isinstance(n, bool) or n < 3:
+            return derived  # left to the configuration's own checks
+        return {**derived, "training": {**derived["training"], "lr_decay_every": n // 3}}
 
     def preset_layers(self, preset: str | None) -> list[dict]:
         """The partial configurations of ``preset``, outermost first: a preset that says
