@@ -32,7 +32,8 @@ normal              10                              unit vectors: no scale
 eikonal             0.1                             |grad f| - 1: no scale
 connectedness       8 / s, margin 0.02 s            the mean penalised field value scales as s
 diversity           0.015 / s                       the aggregated shape distance scales as s
-iterations          2000 (2D), 3600 (3D)            learning rate halved every third of them;
+iterations          2000 (2D), 3600 (3D)            learning rate halved every third of them
+                                                    (of a stated budget too: ProblemSpec.config);
                                                     the 2D budget: the obstacle (16 shapes) ended
                                                     16/16 feasible on seeds 0 and 1 with 2000,
                                                     16/16 and 14/16 with 4000 (diversity pushes the
