@@ -11,6 +11,7 @@ from ginn.eval.metrics import METRIC_NAMES, diversity_from_matrix, diversity_mea
 from ginn.eval.shapes import evaluate_shapes, format_comparison_table, format_table
 from ginn.extract.grid import make_grid
 from ginn.fields import as_field
+from ginn.geometry import csg
 from ginn.geometry.base import Box
 from ginn.problems.problem import Problem
 
@@ -254,3 +255,20 @@ def test_volume_outside_off_interfaces_ignores_the_interface_tolerance(res):
     columns = {256: 0, 512: 1, 1024: 2}[res]
     sliver = s["volume_outside"] - s["volume_outside_off_interfaces"]
     assert sliver == pytest.approx(2 * columns * 0.4 * h / vol_out, rel=0.05, abs=1e-12)
+
+
+def test_holes_of_the_shape_inside_the_design_region():
+    # E = the square minus a central disk (an obstacle); an annulus around it has one hole there,
+    # the same annulus with a gap none; a disk with two holes of its own has two
+    hole = Disk((0.0, 0.0), 0.2)
+    P = problem(design_region=csg.Difference(E2, hole))
+    ring = lambda x, z=None: torch.maximum(x.norm(dim=1) - 0.6, 0.1 - x.norm(dim=1))
+    s = evaluate_shapes(ring, None, P, 128)["shapes"][0]
+    assert (s["b0_in_design_region"], s["b1_in_design_region"], s["b2_in_design_region"]) == (1, 1, None)
+    cut = lambda x, z=None: torch.maximum(ring(x), torch.minimum(0.05 - x[:, 1].abs(), x[:, 0]))  # open on the right
+    s = evaluate_shapes(cut, None, P, 128)["shapes"][0]
+    assert (s["b0_in_design_region"], s["b1_in_design_region"]) == (1, 0)
+    two = lambda x, z=None: torch.maximum(torch.maximum(x.norm(dim=1) - 0.8, 0.1 - (x - torch.tensor([0.5, 0.0], dtype=x.dtype)).norm(dim=1)),
+                                          0.1 - (x + torch.tensor([0.5, 0.0], dtype=x.dtype)).norm(dim=1))
+    s = evaluate_shapes(two, None, problem(), 128)["shapes"][0]
+    assert (s["b0_in_design_region"], s["b1_in_design_region"]) == (1, 2)

@@ -27,6 +27,9 @@ Names (the keys of ``metrics.json``) and estimators:
   distance).
 * ``b0``, ``b0_in_design_region``: face-connected components of the grid nodes of Omega and of
   Omega cap E (scipy.ndimage.label; see :mod:`ginn.extract.grid` for the connectivity convention).
+* ``b1_in_design_region`` (2D: holes; 3D: tunnels), ``b2_in_design_region`` (3D: cavities; None
+  in 2D): Betti numbers of the nodes of Omega cap E (:func:`ginn.topology.betti.betti_numbers`; a
+  region cut out of E that the shape surrounds, such as an obstacle, is a hole). Not in the paper.
 * ``disconnected_volume``, ``disconnected_volume_in_design_region``: volume of all components but
   the largest, over vol(E).
 * ``connected_interfaces_share`` = CI / n_I: interface component ``c`` touches shape component
@@ -60,6 +63,7 @@ from ..geometry.base import Box, Region
 from ..geometry.mesh import closest_on_segments, closest_on_triangles
 from ..levelset import project_to_zero
 from ..problems.problem import Problem
+from ..topology.betti import betti_numbers
 
 __all__ = [
     "METRIC_NAMES",
@@ -85,6 +89,8 @@ __all__ = [
 METRIC_NAMES = (
     "b0",
     "b0_in_design_region",
+    "b1_in_design_region",
+    "b2_in_design_region",
     "disconnected_volume",
     "disconnected_volume_in_design_region",
     "connected_interfaces_share",
@@ -562,6 +568,15 @@ def shape_metrics(
 
     timed("b0", lambda: int(shape.n_labels))
     timed("b0_in_design_region", lambda: int(in_design()[1]))
+    betti: list = []
+
+    def betti_in_design():  # (b0, b1[, b2]) of Omega cap E, computed once
+        if not betti:
+            betti.extend(betti_numbers(inside & ctx.in_design))
+        return betti
+
+    timed("b1_in_design_region", lambda: int(betti_in_design()[1]))
+    timed("b2_in_design_region", lambda: int(betti_in_design()[2]) if inside.ndim == 3 else None)
     timed("disconnected_volume",
           lambda: disconnected_volume(component_volumes(shape.labels, shape.n_labels, ctx.weights), ctx.vol_design))
     timed(

@@ -37,6 +37,8 @@ __all__ = ["evaluate_shapes", "format_table", "format_comparison_table", "METRIC
 METRIC_LABELS = {
     "b0": "↓ b0(Ω)",
     "b0_in_design_region": "↓ b0(Ω ∩ E)",
+    "b1_in_design_region": "b1(Ω ∩ E) (holes / tunnels)",
+    "b2_in_design_region": "b2(Ω ∩ E) (cavities)",
     "disconnected_volume": "↓ vol(DC(Ω)) / vol(E)",
     "disconnected_volume_in_design_region": "↓ vol(DC(Ω ∩ E)) / vol(E)",
     "connected_interfaces_share": "↑ CI(Ω, I) / n_I",
