@@ -1,4 +1,4 @@
-"""Topology subsystem: critical points, surface network, connectedness losses, b0 on grids.
+"""Topology subsystem: critical points, surface network, connectedness losses, b0 and Betti numbers on grids.
 
 Front door for the trainer::
 
@@ -17,6 +17,7 @@ import torch
 from ..config import ConnectednessConfig
 from ..geometry.base import Box, Region
 from .base import ConnectednessLossBase
+from .betti import betti_numbers, enclosed_components
 from .components import b0, b0_of_mask, component_sizes, count_components, field_on_grid
 from .connectedness import ConnectednessLoss, Penalties, SurfaceNetworkLossOptions, saddle_penalties, shape_components
 from .critical import (
@@ -88,4 +89,6 @@ __all__ = [
     "count_components",
     "field_on_grid",
     "b0",
+    "betti_numbers",
+    "enclosed_components",
 ]
