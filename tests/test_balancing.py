@@ -7,7 +7,7 @@ import pytest
 import torch
 
 from ginn.config import BalancingConfig, LossTerm
-from ginn.train.balancing import AdaptiveMultipliers, WeightedSum, make_balancer
+from ginn.train.balancing import AdaptiveMultipliers, CheckedMultipliers, WeightedSum, make_balancer
 
 
 def _solve(scale: float, eps: float, iterations: int = 12000):
@@ -61,3 +61,57 @@ def test_weighted_sum_is_the_papers_sum():
     b = make_balancer({"a": LossTerm(weight=2.0), "b": LossTerm(weight=0.5)}, BalancingConfig())
     assert isinstance(b, WeightedSum) and not isinstance(b, AdaptiveMultipliers)
     assert b.combine({"a": torch.tensor(1.0), "b": torch.tensor(4.0)}, 0).item() == 4.0
+
+
+def _checked():
+    terms = {"interface": LossTerm(weight=3.0), "design_region": LossTerm(weight=2.0), "obstacle": LossTerm(weight=5.0),
+             "eikonal": LossTerm(weight=0.1)}
+    groups = {"interface": ("interface",), "volume_outside": ("design_region", "obstacle"), "connected": ("connectedness",)}
+    return make_balancer(terms, BalancingConfig(method="feasibility"), None, groups)
+
+
+def test_checks_raise_the_multipliers_of_a_stalled_constraint_only():
+    b = _checked()
+    assert isinstance(b, CheckedMultipliers)
+    assert "connected" not in b.groups  # no connectedness term: nothing to raise
+    assert b.on_check({"interface": 3.0, "volume_outside": 0.5}) == {}  # the first check only records
+    # interface 2.8 > 0.9 * 3.0: stalled, raised by min(2.8, 2) = 2; the volume is met
+    assert b.on_check({"interface": 2.8, "volume_outside": 0.4}) == {"interface": 2.0}
+    # interface 1.5 < 0.9 * 2.8: progressing; volume 1.2 > 0.9 * 0.4: raised by 1.2^2
+    assert b.on_check({"interface": 1.5, "volume_outside": 1.2}) == pytest.approx({"volume_outside": 1.44})
+    m = b.multipliers()
+    assert m == pytest.approx({"interface": 6.0, "design_region": 2.88, "obstacle": 7.2, "eikonal": 0.1})
+    # an undefined value (an empty shape's CD1) counts as infinitely violated: the largest step
+    assert b.on_check({"interface": None, "volume_outside": 1.1}) == pytest.approx({"interface": 2.0, "volume_outside": 1.21})
+    assert b.weight("interface") == 12.0 and b.weight("obstacle") == pytest.approx(5.0 * 1.44 * 1.21)
+    total = b.combine({"interface": torch.tensor(1.0), "eikonal": torch.tensor(2.0)}, 0)
+    assert total.item() == pytest.approx(12.0 + 0.2)
+    c = _checked()
+    c.load_state_dict(b.state_dict())
+    assert c.multipliers() == b.multipliers()
+    assert c.on_check({"interface": 1.0, "volume_outside": 2.0}) == b.on_check({"interface": 1.0, "volume_outside": 2.0})
+    assert c.state_dict() == b.state_dict()
+
+
+def test_checked_multipliers_reach_a_tolerance_of_an_equality_constraint():
+    """min |x|^2 + lambda (x_0 - 1)^2 has x_0 = lambda / (1 + lambda): the violation |x_0 - 1| =
+    1 / (1 + lambda) meets a tolerance 0.01 once lambda >= 99. Starting from lambda = 1 with the
+    inner problem solved between checks, a stalled check doubles lambda (q^2 >= 2 until q < 1.42)
+    and the check after it sees the progress that caused, so lambda doubles every second check:
+    64 (q = 1.54) after 13, then 128 (q = 0.78, feasible) and no more raises."""
+    terms = {"objective": LossTerm(weight=1.0), "c": LossTerm(weight=1.0)}
+    b = make_balancer(terms, BalancingConfig(method="feasibility"), None, {"equality": ("c",)})
+    x = torch.tensor([0.0, 0.5], dtype=torch.float64, requires_grad=True)
+    opt = torch.optim.Adam([x], lr=2e-2)
+    history = []
+    for check in range(16):
+        for it in range(1500):
+            opt.zero_grad()
+            b.combine({"objective": (x * x).sum(), "c": (x[0] - 1) ** 2}, it).backward()
+            opt.step()
+        lam = b.weight("c")
+        assert x[0].item() == pytest.approx(lam / (1 + lam), abs=1e-4)
+        history.append(lam)
+        b.on_check({"equality": abs(x[0].item() - 1) / 0.01})
+    assert history[:5] == [1.0, 1.0, 2.0, 2.0, 4.0]
+    assert history[-1] == 128.0 and abs(x[0].item() - 1) < 0.01

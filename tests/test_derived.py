@@ -58,6 +58,7 @@ def test_the_longest_side_sets_the_scale_and_3d_gets_its_budget():
     assert d["model"]["hidden"] == [128, 128, 128] and d["model"]["frame"] == "domain"
     assert d["training"]["iterations"] == 3600 and d["training"]["lr_decay_every"] == 1200
     assert "s = 3" in why["model.frame"] and "s = 3" in why["losses.interface.weight"]
+    assert d["balancing"] == {"method": "feasibility"} and "balancing.method" in why
 
 
 def test_the_spec_overrides_and_config_yaml_says_what_was_derived(tmp_path):
@@ -87,7 +88,7 @@ def test_builtin_specs_state_every_derived_setting():
         cfg = spec.config(preset)
         notes = spec.derived_notes(cfg)
         allowed = {"model.kind", "model.w0_hidden"} | ({"model.w0_first"} if name == "plateau" else set())
-        assert cfg.model.frame == "raw"
+        assert cfg.model.frame == "raw" and cfg.balancing.method == "weighted"
         kept = {n.split(" = ")[0] for n in notes}
         # a derived value may coincide with the stated one; what matters is that none is taken from derived alone
         stated = set(flattened(spec.defaults)) | {p for layer in spec.preset_layers(preset) for p in flattened(layer)}
@@ -95,6 +96,7 @@ def test_builtin_specs_state_every_derived_setting():
         if preset is not None:
             assert set(spec.defaults) == {"latents"}
             assert spec.config().model.frame == "domain"  # no preset: the derived settings
+            assert spec.config().balancing.method == "feasibility"
 
 
 @pytest.mark.parametrize("path", SUITE, ids=[p.stem for p in SUITE])

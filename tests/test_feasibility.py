@@ -8,7 +8,7 @@ import torch
 
 from ginn import runs
 from ginn.config import build_config
-from ginn.eval.feasibility import FEASIBILITY_METRICS, check_feasibility, format_feasibility, summarize, violations
+from ginn.eval.feasibility import FEASIBILITY_METRICS, check_feasibility, format_feasibility, ratios, summarize, violations
 from ginn.eval.shapes import evaluate_shapes
 from ginn.fields import as_field
 from ginn.geometry import csg
@@ -101,6 +101,49 @@ def test_summary_counts_and_worst(obstacle):
     # metrics without the off-interface volume (older runs) are judged by volume_outside
     old = [{k: v for k, v in m.items() if k != "volume_outside_off_interfaces"} for m in shapes]
     assert summarize(old, obstacle)["feasible"] == 0 and summarize(old, obstacle)["worst"]["volume_outside"] == 0.2
+
+
+def test_ratios_are_values_over_bounds(obstacle):
+    m = {"interface_cd1": 8e-3, "volume_outside": 0.02, "volume_outside_off_interfaces": 1e-3, "b0_in_design_region": 2,
+         "connected_interfaces_share": 1.0}
+    assert ratios(m, obstacle) == pytest.approx({"interface": 1.6, "volume_outside": 0.2, "connected": 2.0})
+    # one piece reaching one of two interface components: as bad as two pieces
+    assert ratios(dict(m, b0_in_design_region=1, connected_interfaces_share=0.5), obstacle)["connected"] == 2.0
+    assert ratios(dict(m, b0_in_design_region=1), obstacle)["connected"] == 1.0
+    empty = ratios(dict(m, interface_cd1=None, b0_in_design_region=0), obstacle)
+    assert empty["interface"] == float("inf") and empty["connected"] == float("inf")
+    shapes = [m, dict(m, interface_cd1=2e-3, volume_outside_off_interfaces=0.015, b0_in_design_region=1),
+              dict(m, interface_cd1=None)]
+    # the summary holds the largest ratio of each constraint, undefined ones as None (strict JSON)
+    assert summarize(shapes, obstacle)["ratios"] == {"interface": None, "volume_outside": pytest.approx(3.0),
+                                                     "connected": 2.0}
+    assert summarize(shapes[:2], obstacle)["ratios"]["interface"] == pytest.approx(1.6)
+
+
+def test_checks_raise_the_multipliers_they_log(tmp_path):
+    """``balancing.method: feasibility``: every logged multiplier is its weight times the factors
+    the checks logged for its constraint."""
+    over = {"training": {"iterations": 48, "log_every": 1, "feasibility_checks": 8},
+            "latents": {"n_shapes": 2}, "model": {"hidden": [16, 16]}, "sampling": {"n_domain": 128, "n_interface": 64},
+            "balancing": {"method": "feasibility"}}
+    spec, cfg = runs.resolve("obstacle", "demo", over)
+    runs.train(spec, cfg, tmp_path / "a", progress=False, results=False)
+    events = [json.loads(x) for x in (tmp_path / "a" / "metrics.jsonl").read_text().splitlines()]
+    groups = {"interface": ["interface"], "volume_outside": ["design_region", "obstacle"], "connected": ["connectedness"]}
+    factor = {t: 1.0 for ts in groups.values() for t in ts}
+    raised = 0
+    for e in events:
+        if e.get("event") == "feasibility":
+            assert set(e["ratios"]) == set(groups)
+            for c, f in e.get("raised", {}).items():
+                assert 1.0 < f <= 2.0 and f == pytest.approx(min(2.0, e["ratios"][c] ** 2 if e["ratios"][c] else 2.0), rel=1e-3)
+                raised += 1
+                for t in groups[c]:
+                    factor[t] *= f
+        elif "multipliers" in e:
+            for t, w in e["multipliers"].items():
+                assert w == pytest.approx(getattr(cfg.losses, t).weight * factor.get(t, 1.0), rel=1e-4), (e["step"], t)
+    assert raised >= 2  # early checks find the untrained shapes violated and stalled
 
 
 def test_training_logs_the_checks_and_leaves_the_weights_alone(tmp_path):

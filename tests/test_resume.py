@@ -74,6 +74,8 @@ CASES = {
     "augmented Lagrangian": ("obstacle", "demo", [*OBSTACLE, "balancing.method=augmented-lagrangian",
                                                   "balancing.update_every=4", "balancing.mu_growth=2"]),
     "adaptive multipliers": ("obstacle", "demo", [*OBSTACLE, "balancing.method=adaptive"]),
+    "check-driven multipliers": ("obstacle", "demo", [*OBSTACLE, "balancing.method=feasibility",
+                                                      "training.feasibility_checks=12"]),
     "feasibility checks": ("obstacle", "demo", [*OBSTACLE, "training.stop_when_feasible=true",
                                                 "training.feasibility_checks=12"]),
     "mirror": ("mirror", None, ["training.threads=1", "params.n_samples=64"]),

@@ -171,10 +171,12 @@ class ConnectednessConfig(_Strict):
 class BalancingConfig(_Strict):
     """How loss terms are combined: fixed weights, or an augmented Lagrangian."""
 
-    method: Literal["weighted", "adaptive", "augmented-lagrangian"] = Field(
-        "weighted", description="weighted: the sum of weight * term (the paper); adaptive: constraint terms held at "
-        "targets derived from the problem's tolerances by multipliers adapted from their running violation, the weights "
-        "only starting them; augmented-lagrangian: constraints driven to zero with multipliers")
+    method: Literal["weighted", "feasibility", "adaptive", "augmented-lagrangian"] = Field(
+        "weighted", description="weighted: the sum of weight * term (the paper); feasibility: the weights start the "
+        "multipliers, and each feasibility check raises those of a constraint it finds violated without progress (by "
+        "the square of its worst value over bound, at most 2x); adaptive: constraint terms held at targets derived from the problem's "
+        "tolerances by multipliers adapted from their running violation, the weights only starting them; "
+        "augmented-lagrangian: constraints driven to zero with multipliers")
     objectives: list[str] = Field(default_factory=lambda: ["eikonal", "mean_curvature", "strain", "diversity", "connectedness"],
                                   description="weighted and augmented-lagrangian: the terms minimised as objectives, the rest are "
                                   "constraints (adaptive: the constraints are the terms the task derives targets for)")

@@ -27,7 +27,7 @@ from ..fields import Field
 from ..problems.problem import Problem
 from .metrics import MetricContext, extract_shape, prepare_context, shape_metrics
 
-__all__ = ["FEASIBILITY_METRICS", "judged_volume_outside", "violations", "summarize", "verdict_text",
+__all__ = ["FEASIBILITY_METRICS", "judged_volume_outside", "violations", "ratios", "summarize", "verdict_text",
            "format_feasibility", "short_summary", "check_feasibility", "FeasibilityCheck"]
 
 #: The metrics the verdict reads.
@@ -70,11 +70,37 @@ def violations(metrics: dict, problem: Problem) -> dict[str, dict]:
     return out
 
 
+def ratios(metrics: dict, problem: Problem) -> dict[str, float]:
+    """Each constraint's value over its bound for one shape (above 1: violated; ``inf`` where the
+    value is undefined, e.g. the CD1 of an empty shape). ``connected``: the number of pieces inside
+    E, or the inverse share of interface components its pieces reach if that is larger (1 when
+    met, 0 pieces count as ``inf``)."""
+    tol = problem.tolerances
+    out: dict[str, float] = {}
+    if problem.interfaces:
+        cd1 = metrics.get("interface_cd1")
+        ok = cd1 is not None and math.isfinite(cd1)
+        out["interface"] = float(cd1) / (tol.interface * problem.unit_scale) if ok else math.inf
+    vol = judged_volume_outside(metrics)
+    if vol is not None:
+        out["volume_outside"] = float(vol) / tol.volume_outside
+    if tol.connected:
+        pieces = metrics.get("b0_in_design_region")
+        share = metrics.get("connected_interfaces_share")
+        if not pieces:
+            out["connected"] = math.inf
+        else:
+            missed = 1.0 / share if share is not None and share > 0 else (math.inf if share is not None else 1.0)
+            out["connected"] = max(float(pieces), missed)
+    return out
+
+
 def summarize(shapes: list[dict], problem: Problem) -> dict:
-    """``{"feasible": k, "shapes": S, "violations": [per shape], "worst": {name: value}}`` for
-    the per-shape metric dicts ``shapes`` (``worst``: the largest CD1, the largest volume outside
-    E that the verdict bounds (:func:`judged_volume_outside`) as ``volume_outside``, and the most
-    pieces inside E)."""
+    """``{"feasible": k, "shapes": S, "violations": [per shape], "worst": {name: value},
+    "ratios": {constraint: value / bound}}`` for the per-shape metric dicts ``shapes``
+    (``worst``: the largest CD1, the largest volume outside E that the verdict bounds
+    (:func:`judged_volume_outside`) as ``volume_outside``, and the most pieces inside E;
+    ``ratios``: the largest of :func:`ratios` over the shapes, ``None`` for ``inf``)."""
     per = [violations(m, problem) for m in shapes]
     worst: dict = {}
     judged = [{**m, "volume_outside": judged_volume_outside(m)} for m in shapes]
@@ -82,7 +108,12 @@ def summarize(shapes: list[dict], problem: Problem) -> dict:
         vals = [m.get(k) for m in judged if m.get(k) is not None]
         if vals:
             worst[k] = max(float(v) for v in vals)
-    return {"feasible": sum(not v for v in per), "shapes": len(shapes), "violations": per, "worst": worst}
+    top: dict[str, float] = {}
+    for r in (ratios(m, problem) for m in shapes):
+        for k, v in r.items():
+            top[k] = max(top.get(k, 0.0), v)
+    return {"feasible": sum(not v for v in per), "shapes": len(shapes), "violations": per, "worst": worst,
+            "ratios": {k: v if math.isfinite(v) else None for k, v in top.items()}}
 
 
 def _num(v: float | None) -> str:

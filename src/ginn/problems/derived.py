@@ -38,6 +38,11 @@ iterations          2000 (2D), 3600 (3D)            learning rate halved every t
                                                     16/16 feasible on seeds 0 and 1 with 2000,
                                                     16/16 and 14/16 with 4000 (diversity pushes the
                                                     shapes against E's boundary late in the run)
+balancing           feasibility                     the weights below start the multipliers of
+                                                    the constraint terms; a check that finds a
+                                                    constraint violated and not shrinking raises
+                                                    them (:mod:`ginn.train.balancing`;
+                                                    ``docs/results.md``, "Problem suite")
 points              2D: 1024 domain, 512 outside,   per shape and iteration
                     64 obstacle, 128 interface,
                     128 boundary; 3D: 2048, 1024,
@@ -125,5 +130,8 @@ def derived_defaults(problem: Problem) -> tuple[dict, dict[str, str]]:
                     "n_boundary": 256}
         conn = {"every": 5, "grid": 10, "margin": 0.02 * s}
     note("connectedness.margin", f"0.02 s, s = {s:.4g}")
-    out = {"model": model, "losses": losses, "sampling": sampling, "connectedness": conn, "training": training}
+    note("balancing.method", "the weights start the multipliers; each feasibility check raises those of a constraint "
+                             "it finds violated without progress")
+    out = {"model": model, "losses": losses, "sampling": sampling, "connectedness": conn, "training": training,
+           "balancing": {"method": "feasibility"}}
     return out, why

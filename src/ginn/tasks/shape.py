@@ -371,6 +371,13 @@ class ShapeTask(Task):
             out["connectedness"] = 0.0
         return out
 
+    def constraint_terms(self) -> dict[str, tuple[str, ...]]:
+        """The verdict's constraints (:func:`ginn.eval.feasibility.ratios`) and the loss terms
+        that enforce them: the interface values, the containment terms (the volume outside E
+        counts the obstacles) and the connectedness loss."""
+        return {"interface": ("interface",), "volume_outside": ("design_region", "obstacle"),
+                "connected": ("connectedness",)}
+
     def feasibility(self, model: nn.Module) -> dict | None:
         """The problem's tolerances checked on a coarse grid (``RESOLUTION['check']``), with the
         definitions of ``ginn eval`` (:class:`ginn.eval.feasibility.FeasibilityCheck`)."""

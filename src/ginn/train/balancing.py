@@ -29,6 +29,24 @@ so a violated constraint's multiplier grows by up to 1 % of itself per iteration
 one shrinks, and an inactive one reaches 0 (below 0.01 the steps are absolute). Relative steps
 make the update free of units: the same settings find multipliers of 1e-1 or 1e4, whatever the
 scale of the term. A term without a target is an objective with its configured weight.
+
+Check-driven multipliers (``method: feasibility``): the weights are the starting multipliers, and
+each feasibility check during training (``training.feasibility_checks``) raises the multiplier of
+the terms behind a constraint it finds violated without progress. With ``q_c`` the constraint's
+value over its bound for the worst shape (:func:`ginn.eval.feasibility.ratios`: CD1 / bound,
+volume outside E / bound, pieces inside E) and ``q_c'`` the same at the check before::
+
+    if q_c > 1 and q_c > 0.9 q_c':   lambda_t <- lambda_t * min(q_c^2, 2)   for every term t of c
+
+This is the classical augmented-Lagrangian penalty rule (raise the penalty when the violation has
+not shrunk by a set share since the last outer iteration) with the violation measured the way the
+verdict measures it, in units of the tolerance, so it needs no per-problem target in loss units.
+The square overshoots: where the violation falls like ``1 / lambda`` (a quadratic penalty), a
+factor ``q_c`` would only approach the bound, ``q_c^2`` lands a factor ``q_c`` inside it. The
+first check only records ``q``. Multipliers never fall below the weights, so a problem the
+weights already solve trains as with ``weighted`` as long as every check shows progress or
+feasibility, and a constraint that stays violated gains weight against the others (at most a
+factor 2 per check, 2^10 over the default 10 checks).
 """
 
 from __future__ import annotations
@@ -71,6 +89,11 @@ class WeightedSum:
 
     def multipliers(self) -> dict[str, float]:
         return dict(self.weights)
+
+    def on_check(self, ratios: dict[str, float | None]) -> dict[str, float]:
+        """A feasibility check's worst ``{constraint: value / bound}``; returns the multiplier
+        factors it applied (none here)."""
+        return {}
 
     def state_dict(self) -> dict:
         return {}
@@ -191,12 +214,75 @@ class AdaptiveMultipliers(WeightedSum):
         self.seen = {k: int(v) for k, v in state["seen"].items()}
 
 
-def make_balancer(terms: dict[str, LossTerm], cfg: BalancingConfig, targets: dict[str, float] | None = None) -> WeightedSum:
-    """The balancer of ``cfg.method``; ``targets``: the constraint targets for ``adaptive``."""
+class CheckedMultipliers(WeightedSum):
+    """Multipliers raised by the feasibility checks; see the module docstring.
+
+    Arguments:
+        terms: every loss term (the weights start the multipliers and weigh the objectives).
+        groups: ``{constraint: (term, ...)}``, the loss terms that enforce each constraint of the
+            verdict (:meth:`~ginn.train.task.Task.constraint_terms`); terms in no group keep their
+            weights.
+
+    ``GROWTH`` (largest factor per check) and ``PROGRESS`` (the share of the previous violation
+    below which a constraint counts as progressing) are class constants: they act on ratios to
+    the tolerance, not on the problem's units.
+    """
+
+    GROWTH = 2.0
+    PROGRESS = 0.9
+
+    def __init__(self, terms: dict[str, LossTerm], groups: dict[str, tuple[str, ...]], objectives=()):
+        super().__init__(terms, objectives)
+        self.groups = {c: tuple(t for t in ts if t in terms) for c, ts in groups.items()}
+        self.groups = {c: ts for c, ts in self.groups.items() if ts}
+        self.scale = {c: 1.0 for c in self.groups}  # each constraint's multipliers over their weights
+        self.previous: dict[str, float] = {}  # q of each constraint at the last check
+
+    def weight(self, term: str) -> float:
+        w = self.weights.get(term, 0.0)
+        for c, ts in self.groups.items():
+            if term in ts:
+                return w * self.scale[c]
+        return w
+
+    def on_check(self, ratios: dict[str, float | None]) -> dict[str, float]:
+        """Update from one check's worst ratios ``{constraint: value / bound}`` (None: undefined,
+        e.g. an empty shape); returns the factors applied ``{constraint: factor}``."""
+        raised = {}
+        for c in self.groups:
+            if c not in ratios:
+                continue
+            q = ratios[c]
+            q = math.inf if q is None else float(q)
+            before = self.previous.get(c)
+            if before is not None and q > 1.0 and q > self.PROGRESS * before:
+                f = min(q * q, self.GROWTH)
+                self.scale[c] *= f
+                raised[c] = f
+            self.previous[c] = q if math.isfinite(q) else 1e300
+        return raised
+
+    def multipliers(self) -> dict[str, float]:
+        return {k: self.weight(k) for k in self.weights}
+
+    def state_dict(self) -> dict:
+        return {"scale": dict(self.scale), "previous": dict(self.previous)}
+
+    def load_state_dict(self, state: dict) -> None:
+        self.scale.update({k: float(v) for k, v in state["scale"].items()})
+        self.previous = {k: float(v) for k, v in state["previous"].items()}
+
+
+def make_balancer(terms: dict[str, LossTerm], cfg: BalancingConfig, targets: dict[str, float] | None = None,
+                  groups: dict[str, tuple[str, ...]] | None = None) -> WeightedSum:
+    """The balancer of ``cfg.method``; ``targets``: the constraint targets for ``adaptive``;
+    ``groups``: the terms of each checked constraint for ``feasibility``."""
     if cfg.method == "weighted":
         return WeightedSum(terms, cfg.objectives)
     if cfg.method == "adaptive":
         return AdaptiveMultipliers(terms, targets or {})
+    if cfg.method == "feasibility":
+        return CheckedMultipliers(terms, groups or {}, cfg.objectives)
     return AugmentedLagrangian(terms, cfg)
 
 

@@ -81,6 +81,11 @@ class Task(abc.ABC):
         ``balancing.method: adaptive`` (the rest are objectives); none by default."""
         return {}
 
+    def constraint_terms(self) -> dict[str, tuple[str, ...]]:
+        """``{constraint: (term, ...)}``: the loss terms that enforce each constraint of the
+        feasibility verdict (``balancing.method: feasibility``); none by default."""
+        return {}
+
     def feasibility(self, model: nn.Module) -> dict | None:
         """Which shapes meet the problem's tolerances now (a cheap coarse-grid check;
         :func:`ginn.eval.feasibility.summarize`), or None for tasks without tolerances."""

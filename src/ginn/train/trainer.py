@@ -183,7 +183,7 @@ class Trainer:
         if first > 0:
             raise ConfigError(f"no loss term is active at iteration 0 (the earliest start is {first}); "
                               "set losses.<term>.start = 0 for at least one term")
-        self.balancer = make_balancer(self.terms, cfg.balancing, task.constraint_targets())
+        self.balancer = make_balancer(self.terms, cfg.balancing, task.constraint_targets(), task.constraint_terms())
         self.step = 0
         self.bad_steps = 0
         self.rollbacks = 0
@@ -382,6 +382,11 @@ class Trainer:
         self.feasibility = summary
         record = {"step": self.step, "event": "feasibility", "feasible": summary["feasible"], "shapes": summary["shapes"],
                   "worst": summary["worst"], "violated": _violated_counts(summary)}
+        if summary.get("ratios") is not None:
+            record["ratios"] = summary["ratios"]
+        raised = self.balancer.on_check(summary.get("ratios") or {}) if self.step < self.cfg.training.iterations else {}
+        if raised:
+            record["raised"] = {k: round(v, 4) for k, v in raised.items()}
         interval_mean, n_mean, self._mean, self._mean_count = self._mean, self._mean_count, None, 0
         if self.cfg.training.keep_most_feasible:
             candidates = [(summary, None)]
