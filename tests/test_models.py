@@ -1,8 +1,10 @@
+import math
+
 import pytest
 import torch
 
 from ginn.fields import evaluate
-from ginn.models import MLP, FourierMLP, PeriodicEncoding, ResMLP, Siren
+from ginn.models import MLP, FourierMLP, PeriodicEncoding, ResMLP, Siren, Wire
 
 
 def make_models(d, k, out=1):
@@ -11,6 +13,7 @@ def make_models(d, k, out=1):
         ResMLP(d, width=32, n_blocks=3, latent_dim=k, out_dim=out, beta=10.0),
         MLP(d, [16, 16], latent_dim=k, out_dim=out),
         FourierMLP(d, [32, 32], latent_dim=k, out_dim=out, sigma=3.0, n_features=16),
+        Wire(d, [16, 16, 16], latent_dim=k, out_dim=out),
     ]
 
 
@@ -190,3 +193,80 @@ def test_domain_frame_scales_values_and_keeps_gradients():
     ev = fields.evaluate(framed, x, z, grad=True)
     torch.testing.assert_close(ev.grad, g)
     assert framed.in_dim == 2 and framed.latent_dim == 1
+
+
+def _wire_reference(m: Wire, x: torch.Tensor, z: torch.Tensor | None) -> torch.Tensor:
+    """The WIRE formula with torch's complex numbers: psi(u) = exp(i omega u - |scale u|^2)."""
+    c = m.core
+    psi = lambda u: torch.exp(1j * c.omega * u - (c.scale * u).abs() ** 2)  # noqa: E731
+    h = psi(c.first(torch.cat([x, z], dim=1) if z is not None else x).to(torch.complex128))
+    for layer in [*c.hidden, c.last]:
+        W = torch.complex(layer.weight_re, layer.weight_im)
+        b = torch.complex(layer.bias_re, layer.bias_im)
+        u = h @ W.t() + b
+        h = psi(u) if layer is not c.last else u
+    return h.real.squeeze(-1)
+
+
+def test_wire_is_the_complex_gabor_network_in_real_arithmetic():
+    torch.manual_seed(1)
+    m = Wire(2, [24, 24, 24], latent_dim=2, omega=12.0, scale=4.0).double()
+    x, z = torch.rand(40, 2, dtype=torch.float64) * 2 - 1, torch.rand(40, 2, dtype=torch.float64)
+    assert torch.allclose(m(x, z), _wire_reference(m, x, z), rtol=1e-12, atol=1e-14)
+    # every parameter is real (optimisers, checkpoints, DDP): a complex layer holds two real tensors
+    assert all(not p.is_complex() for p in m.parameters())
+    assert sum(p.numel() for p in m.core.hidden[0].parameters()) == 2 * (24 * 24 + 24)
+
+
+def test_wire_modulus_is_bounded_whatever_the_preactivation():
+    """|psi(p + i q)| = exp(-omega q - scale^2 (p^2 + q^2)) peaks at p = 0, q = -omega / (2 scale^2)
+    with the value exp(omega^2 / (4 scale^2))."""
+    from ginn.models.wire import gabor
+
+    omega, scale = 20.0, 10.0
+    p = torch.linspace(-3, 3, 601, dtype=torch.float64)[:, None].expand(601, 601)
+    q = torch.linspace(-3, 3, 601, dtype=torch.float64)[None, :].expand(601, 601)
+    re, im = gabor(p, q, omega, scale)
+    mod = torch.sqrt(re * re + im * im)
+    assert mod.max().item() == pytest.approx(math.exp(1.0), rel=1e-12)  # attained on the grid: q = -0.1
+    assert torch.allclose(mod, torch.exp(-omega * q - scale**2 * (p * p + q * q)), rtol=1e-12)
+
+
+def test_wire_initialisation_is_pytorch_default_linear():
+    torch.manual_seed(0)
+    m = Wire(3, [256, 256], latent_dim=1)
+    b1 = 1 / math.sqrt(4)
+    assert m.core.first.weight.abs().max() <= b1 and m.core.first.bias.abs().max() <= b1
+    for layer in [m.core.hidden[0], m.core.last]:
+        bound = 1 / math.sqrt(256)
+        for t in (layer.weight_re, layer.weight_im):
+            assert t.abs().max().item() <= bound
+            if t.numel() > 1000:  # U(-c, c) has standard deviation c / sqrt(3)
+                assert t.std().item() == pytest.approx(bound / math.sqrt(3), rel=0.03)
+
+
+def test_wire_derivatives_match_finite_differences():
+    """Gradients and Hessians of the engine (autograd through the real arithmetic) against
+    central differences in float64."""
+    torch.manual_seed(2)
+    m = Wire(3, [16, 16, 16], latent_dim=1, omega=6.0, scale=2.0).double()
+    x = torch.rand(7, 3, dtype=torch.float64) * 2 - 1
+    z = torch.rand(7, 1, dtype=torch.float64)
+    v = evaluate(m, x, z, hessian_at=True, create_graph=False)
+    h = 1e-6  # the field is steep (|grad f| up to 46 here): central differences err by about 1e-7
+    eye = torch.eye(3, dtype=torch.float64)
+    with torch.no_grad():
+        fd_grad = torch.stack([(m(x + h * e, z) - m(x - h * e, z)) / (2 * h) for e in eye], dim=1)
+    assert torch.allclose(v.grad, fd_grad, rtol=1e-7, atol=1e-6)
+    grads = [evaluate(m, x + s * h * e, z).grad for e in eye for s in (1, -1)]
+    fd_hess = torch.stack([(grads[2 * i] - grads[2 * i + 1]) / (2 * h) for i in range(3)], dim=1)
+    assert torch.allclose(v.hessian, fd_hess, rtol=1e-6, atol=1e-4)
+    assert torch.allclose(v.hessian, v.hessian.transpose(1, 2), atol=1e-10)
+
+
+def test_wire_from_the_config():
+    from ginn.config import ModelConfig
+    from ginn.models.factory import build_model
+
+    m = build_model(ModelConfig(kind="wire", hidden=[8, 8], gabor_omega=5.0, gabor_scale=3.0), 2, latent_dim=1)
+    assert isinstance(m, Wire) and (m.omega, m.scale) == (5.0, 3.0) and m.core.last.weight_re.shape == (1, 8)

@@ -45,6 +45,8 @@ def test_scalars_images_and_steps_match_metrics_jsonl(tmp_path):
     assert [e.step for e in acc.Scalars("feasibility/feasible")] == [6, 12]
     assert [e.value for e in acc.Scalars("feasibility/feasible")] == [r["feasible"] for r in checks]
     assert "feasibility/worst/interface_cd1" in tags and "diagnostics/boundary_converged" in tags
+    np.testing.assert_allclose([e.value for e in acc.Scalars("feasibility/ratio/volume_outside")],
+                               [r["ratios"]["volume_outside"] for r in checks], rtol=1e-6)
     pngs = [p for p in out.results if p.suffix == ".png"]
     assert pngs and len(acc.Tags()["images"]) == len(pngs)
     img = acc.Images(acc.Tags()["images"][0])[0]

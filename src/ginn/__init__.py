@@ -5,7 +5,7 @@ The public API, re-exported here (everything else is internal and may change):
 * front door: :func:`fit` (train a problem, as ``ginn train``), :func:`evaluate` (as ``ginn eval``),
   :func:`load_run`, :func:`resolve`
 * configuration: :class:`RunConfig`, :func:`build_config`
-* fields and models: :mod:`ginn.fields` (the derivative engine), :class:`Siren`, :class:`ResMLP`,
+* fields and models: :mod:`ginn.fields` (the derivative engine), :class:`Siren`, :class:`Wire`, :class:`ResMLP`,
   :class:`MLP`, :class:`FourierMLP`, :class:`PeriodicEncoding`, :func:`build_model`
 * geometry: :class:`Box`, :class:`Region`, :class:`Interface`, primitives, CSG, meshes, samplers
 * problems: :class:`Problem`, :class:`ProblemSpec`, :func:`load_spec`, :func:`list_problems`
@@ -60,7 +60,7 @@ from .losses import (
     StrainLoss,
     diversity,
 )
-from .models import MLP, FourierMLP, NeuralField, PeriodicEncoding, ResMLP, Siren, build_model
+from .models import MLP, FourierMLP, NeuralField, PeriodicEncoding, ResMLP, Siren, Wire, build_model
 from .problems import Problem, ProblemSpec, list_problems, load_spec
 from .runs import Run, evaluate, fit, load_run, resolve
 from .tasks import TASKS, ShapeTask, make_task
@@ -71,7 +71,7 @@ __all__ = [
     "__version__",
     "fit", "evaluate", "load_run", "resolve", "Run",
     "RunConfig", "build_config",
-    "fields", "NeuralField", "Siren", "ResMLP", "MLP", "FourierMLP", "PeriodicEncoding", "build_model",
+    "fields", "NeuralField", "Siren", "Wire", "ResMLP", "MLP", "FourierMLP", "PeriodicEncoding", "build_model",
     "Box", "Region", "Interface", "AABox", "Rectangle", "Cuboid", "Ball", "Disk", "Sphere", "HalfSpace",
     "Polygon", "Cylinder", "Extrusion", "Union", "Intersection", "Difference", "Transformed",
     "Segment", "Polyline", "Circle", "CylinderWall", "Annulus", "MeshRegion", "MeshInterface",

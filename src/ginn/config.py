@@ -49,15 +49,20 @@ class _Strict(BaseModel):
 class ModelConfig(_Strict):
     """The neural field."""
 
-    kind: Literal["siren", "resmlp", "mlp", "fourier"] = Field(
-        "siren", description="siren (sine activations), resmlp (softplus residual MLP), mlp, fourier (Fourier features + MLP)")
-    hidden: list[int] = Field(default_factory=lambda: [64, 64, 64, 64], description="hidden widths (siren, mlp, fourier)",
-                              json_schema_extra={"kinds": ("siren", "mlp", "fourier")})
+    kind: Literal["siren", "wire", "resmlp", "mlp", "fourier"] = Field(
+        "siren", description="siren (sine activations), wire (complex Gabor wavelet activations), resmlp (softplus "
+        "residual MLP), mlp, fourier (Fourier features + MLP)")
+    hidden: list[int] = Field(default_factory=lambda: [64, 64, 64, 64], description="hidden widths (siren, wire, mlp, fourier)",
+                              json_schema_extra={"kinds": ("siren", "wire", "mlp", "fourier")})
     width: int = Field(512, gt=0, description="hidden width (resmlp)", json_schema_extra={"kinds": ("resmlp",)})
     n_blocks: int = Field(4, gt=0, description="number of hidden layers (resmlp)", json_schema_extra={"kinds": ("resmlp",)})
     w0_first: float = Field(1.0, gt=0, description="SIREN omega_0 of the first layer (omega_0^1)",
                             json_schema_extra={"kinds": ("siren",)})
     w0_hidden: float = Field(1.0, gt=0, description="SIREN omega_0 of the hidden layers", json_schema_extra={"kinds": ("siren",)})
+    gabor_omega: float = Field(20.0, gt=0, description="WIRE: frequency omega of the Gabor activation exp(i omega u - |scale u|^2)",
+                               json_schema_extra={"kinds": ("wire",)})
+    gabor_scale: float = Field(10.0, gt=0, description="WIRE: inverse width of the Gabor window (scale above)",
+                               json_schema_extra={"kinds": ("wire",)})
     latent_scale: float = Field(
         1.0, gt=0, description="multiply the latent codes by this before they enter the network (for a SIREN: "
         "the first layer's frequency along the latent axes is omega_0^1 * latent_scale); 1 is the paper's")

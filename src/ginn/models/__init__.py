@@ -7,6 +7,7 @@ from .frame import DomainFrame
 from .latents import fixed_latents, latent_dim, midpoints, random_latents
 from .mlp import MLP, FourierFeatures, FourierMLP, ResMLP, make_activation
 from .siren import SineLayer, Siren
+from .wire import Wire
 
 __all__ = [
     "NeuralField",
@@ -17,6 +18,7 @@ __all__ = [
     "IdentityEncoding",
     "Siren",
     "SineLayer",
+    "Wire",
     "MLP",
     "ResMLP",
     "FourierMLP",

@@ -8,6 +8,7 @@ from ..config import ModelConfig
 from .base import ConcatConditioning, PeriodicEncoding
 from .mlp import MLP, FourierMLP, ResMLP
 from .siren import Siren
+from .wire import Wire
 
 
 def build_model(cfg: ModelConfig, in_dim: int, latent_dim: int = 0, out_dim: int = 1) -> nn.Module:
@@ -16,6 +17,8 @@ def build_model(cfg: ModelConfig, in_dim: int, latent_dim: int = 0, out_dim: int
     cond = ConcatConditioning(cfg.latent_scale)
     if cfg.kind == "siren":
         return Siren(in_dim, cfg.hidden, latent_dim, out_dim, cfg.w0_first, cfg.w0_hidden, encoding=enc, conditioning=cond)
+    if cfg.kind == "wire":
+        return Wire(in_dim, cfg.hidden, latent_dim, out_dim, cfg.gabor_omega, cfg.gabor_scale, encoding=enc, conditioning=cond)
     if cfg.kind == "resmlp":
         return ResMLP(in_dim, cfg.width, cfg.n_blocks, latent_dim, out_dim, cfg.beta, encoding=enc, conditioning=cond)
     if cfg.kind == "mlp":

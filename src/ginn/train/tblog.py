@@ -15,6 +15,7 @@ tag                             from
 ``feasibility/feasible``        shapes feasible at a feasibility check (and ``/shapes``)
 ``feasibility/worst/<metric>``  the worst value of each checked metric
 ``feasibility/violated/<c>``    how many shapes violate constraint ``c``
+``feasibility/ratio/<c>``       the worst value of constraint ``c`` over its bound
 ``events``                      (text) every other event: rollback, restored, stopped, ...
 ``figures/<file>``              (image) the PNGs a completed run writes
 ==============================  ==========================================================
@@ -89,6 +90,9 @@ class TensorBoardLog:
                     add(f"feasibility/worst/{k}", v, step)
             for k, v in (record.get("violated") or {}).items():
                 add(f"feasibility/violated/{k}", v, step)
+            for k, v in (record.get("ratios") or {}).items():
+                if isinstance(v, (int, float)):
+                    add(f"feasibility/ratio/{k}", v, step)
         else:
             self.writer.add_text("events", json.dumps(record), step)
 
