@@ -70,35 +70,38 @@ def _checked():
     return make_balancer(terms, BalancingConfig(method="feasibility"), None, groups)
 
 
-def test_checks_raise_the_multipliers_of_a_stalled_constraint_only():
+def test_checks_raise_the_multipliers_of_a_constraint_off_track_only():
     b = _checked()
     assert isinstance(b, CheckedMultipliers)
     assert "connected" not in b.groups  # no connectedness term: nothing to raise
-    assert b.on_check({"interface": 3.0, "volume_outside": 0.5}) == {}  # the first check only records
-    # interface 2.8 > 0.9 * 3.0: stalled, raised by min(2.8, 2) = 2; the volume is met
-    assert b.on_check({"interface": 2.8, "volume_outside": 0.4}) == {"interface": 2.0}
-    # interface 1.5 < 0.9 * 2.8: progressing; volume 1.2 > 0.9 * 0.4: raised by 1.2^2
-    assert b.on_check({"interface": 1.5, "volume_outside": 1.2}) == pytest.approx({"volume_outside": 1.44})
+    assert b.on_check({"interface": 3.0, "volume_outside": 0.5}, 5) == {}  # the first check only records
+    # interface 2.8 (2.8 / 3)^4 = 2.1 > 1: off track, raised by min(2.8^2, 2) = 2; the volume is met
+    assert b.on_check({"interface": 2.8, "volume_outside": 0.4}, 4) == {"interface": 2.0}
+    # interface 1.5 (1.5 / 2.8)^3 = 0.23: on track; volume 1.2 (1.2 / 0.4)^3 > 1: raised by 1.2^2
+    assert b.on_check({"interface": 1.5, "volume_outside": 1.2}, 3) == pytest.approx({"volume_outside": 1.44})
     m = b.multipliers()
     assert m == pytest.approx({"interface": 6.0, "design_region": 2.88, "obstacle": 7.2, "eikonal": 0.1})
-    # an undefined value (an empty shape's CD1) counts as infinitely violated: the largest step
-    assert b.on_check({"interface": None, "volume_outside": 1.1}) == pytest.approx({"interface": 2.0, "volume_outside": 1.21})
+    # an undefined value (an empty shape's CD1) is off track whatever came before: the largest
+    # step; volume 1.1 (1.1 / 1.2)^2 = 0.92 is on track with two checks to come
+    assert b.on_check({"interface": None, "volume_outside": 1.1}, 2) == {"interface": 2.0}
+    # the same volume one check later is stalled: 1.1 (1.1 / 1.1)^1 > 1
+    assert b.on_check({"interface": 0.5, "volume_outside": 1.1}, 1) == pytest.approx({"volume_outside": 1.21})
     assert b.weight("interface") == 12.0 and b.weight("obstacle") == pytest.approx(5.0 * 1.44 * 1.21)
     total = b.combine({"interface": torch.tensor(1.0), "eikonal": torch.tensor(2.0)}, 0)
     assert total.item() == pytest.approx(12.0 + 0.2)
     c = _checked()
     c.load_state_dict(b.state_dict())
     assert c.multipliers() == b.multipliers()
-    assert c.on_check({"interface": 1.0, "volume_outside": 2.0}) == b.on_check({"interface": 1.0, "volume_outside": 2.0})
+    assert c.on_check({"interface": 1.0, "volume_outside": 2.0}, 0) == b.on_check({"interface": 1.0, "volume_outside": 2.0}, 0)
     assert c.state_dict() == b.state_dict()
 
 
 def test_checked_multipliers_reach_a_tolerance_of_an_equality_constraint():
     """min |x|^2 + lambda (x_0 - 1)^2 has x_0 = lambda / (1 + lambda): the violation |x_0 - 1| =
-    1 / (1 + lambda) meets a tolerance 0.01 once lambda >= 99. Starting from lambda = 1 with the
-    inner problem solved between checks, a stalled check doubles lambda (q^2 >= 2 until q < 1.42)
-    and the check after it sees the progress that caused, so lambda doubles every second check:
-    64 (q = 1.54) after 13, then 128 (q = 0.78, feasible) and no more raises."""
+    1 / (1 + lambda) meets a tolerance 0.01 once lambda >= 99. With lambda = 1 at first and the
+    inner problem solved between 16 checks, a raise (by 2: q^2 > 2 until q < 1.42) is followed by
+    a check that finds the violation on track (q = 50 -> 33: 33 (33 / 50)^13 < 1), and the next
+    one finds it stalled, so lambda doubles every second check: 128 (q = 0.78) at check 14."""
     terms = {"objective": LossTerm(weight=1.0), "c": LossTerm(weight=1.0)}
     b = make_balancer(terms, BalancingConfig(method="feasibility"), None, {"equality": ("c",)})
     x = torch.tensor([0.0, 0.5], dtype=torch.float64, requires_grad=True)
@@ -112,6 +115,6 @@ def test_checked_multipliers_reach_a_tolerance_of_an_equality_constraint():
         lam = b.weight("c")
         assert x[0].item() == pytest.approx(lam / (1 + lam), abs=1e-4)
         history.append(lam)
-        b.on_check({"equality": abs(x[0].item() - 1) / 0.01})
-    assert history[:5] == [1.0, 1.0, 2.0, 2.0, 4.0]
-    assert history[-1] == 128.0 and abs(x[0].item() - 1) < 0.01
+        b.on_check({"equality": abs(x[0].item() - 1) / 0.01}, 15 - check)
+    assert history == [1.0, 1.0, 2.0, 2.0, 4.0, 4.0, 8.0, 8.0, 16.0, 16.0, 32.0, 32.0, 64.0, 64.0, 128.0, 128.0]
+    assert abs(x[0].item() - 1) < 0.01

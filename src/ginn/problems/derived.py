@@ -40,7 +40,7 @@ iterations          2000 (2D), 3600 (3D)            learning rate halved every t
                                                     shapes against E's boundary late in the run)
 balancing           feasibility                     the weights below start the multipliers of
                                                     the constraint terms; a check that finds a
-                                                    constraint violated and not shrinking raises
+                                                    constraint violated and off track raises
                                                     them (:mod:`ginn.train.balancing`;
                                                     ``docs/results.md``, "Problem suite")
 points              2D: 1024 domain, 512 outside,   per shape and iteration
@@ -131,7 +131,7 @@ def derived_defaults(problem: Problem) -> tuple[dict, dict[str, str]]:
         conn = {"every": 5, "grid": 10, "margin": 0.02 * s}
     note("connectedness.margin", f"0.02 s, s = {s:.4g}")
     note("balancing.method", "the weights start the multipliers; each feasibility check raises those of a constraint "
-                             "it finds violated without progress")
+                             "it finds violated and off track")
     out = {"model": model, "losses": losses, "sampling": sampling, "connectedness": conn, "training": training,
            "balancing": {"method": "feasibility"}}
     return out, why

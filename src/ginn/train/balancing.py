@@ -32,21 +32,24 @@ scale of the term. A term without a target is an objective with its configured w
 
 Check-driven multipliers (``method: feasibility``): the weights are the starting multipliers, and
 each feasibility check during training (``training.feasibility_checks``) raises the multiplier of
-the terms behind a constraint it finds violated without progress. With ``q_c`` the constraint's
-value over its bound for the worst shape (:func:`ginn.eval.feasibility.ratios`: CD1 / bound,
-volume outside E / bound, pieces inside E) and ``q_c'`` the same at the check before::
+the terms behind a constraint it finds violated and not on track to be met by the end of the run.
+With ``q_c`` the constraint's value over its bound for the worst shape
+(:func:`ginn.eval.feasibility.ratios`: CD1 / bound, volume outside E / bound, pieces inside E),
+``q_c'`` the same at the check before and ``R`` the number of checks still to come::
 
-    if q_c > 1 and q_c > 0.9 q_c':   lambda_t <- lambda_t * min(q_c^2, 2)   for every term t of c
+    on track:  q_c (q_c / q_c')^R <= 1     (the last interval's rate, kept up, meets the bound)
+    if q_c > 1 and not on track:   lambda_t <- lambda_t * min(q_c^2, 2)   for every term t of c
 
 This is the classical augmented-Lagrangian penalty rule (raise the penalty when the violation has
-not shrunk by a set share since the last outer iteration) with the violation measured the way the
-verdict measures it, in units of the tolerance, so it needs no per-problem target in loss units.
-The square overshoots: where the violation falls like ``1 / lambda`` (a quadratic penalty), a
-factor ``q_c`` would only approach the bound, ``q_c^2`` lands a factor ``q_c`` inside it. The
-first check only records ``q``. Multipliers never fall below the weights, so a problem the
-weights already solve trains as with ``weighted`` as long as every check shows progress or
-feasibility, and a constraint that stays violated gains weight against the others (at most a
-factor 2 per check, 2^10 over the default 10 checks).
+not shrunk enough since the last outer iteration) with the violation measured the way the
+verdict measures it, in units of the tolerance, so it needs no per-problem target in loss units,
+and with "enough" set by the budget left: early in a run slow progress suffices, late in it only
+a rate that reaches the bound in the checks that remain. The square overshoots: where the
+violation falls like ``1 / lambda`` (a quadratic penalty), a factor ``q_c`` would only approach
+the bound, ``q_c^2`` lands a factor ``q_c`` inside it. The first check only records ``q``.
+Multipliers never fall below the weights, so a problem the weights already solve trains as with
+``weighted`` while every check finds it on track, and a constraint that stays violated gains
+weight against the others (at most a factor 2 per check).
 """
 
 from __future__ import annotations
@@ -90,9 +93,9 @@ class WeightedSum:
     def multipliers(self) -> dict[str, float]:
         return dict(self.weights)
 
-    def on_check(self, ratios: dict[str, float | None]) -> dict[str, float]:
-        """A feasibility check's worst ``{constraint: value / bound}``; returns the multiplier
-        factors it applied (none here)."""
+    def on_check(self, ratios: dict[str, float | None], remaining: int) -> dict[str, float]:
+        """A feasibility check's worst ``{constraint: value / bound}``, ``remaining`` checks still
+        to come; returns the multiplier factors it applied (none here)."""
         return {}
 
     def state_dict(self) -> dict:
@@ -214,6 +217,15 @@ class AdaptiveMultipliers(WeightedSum):
         self.seen = {k: int(v) for k, v in state["seen"].items()}
 
 
+_HUGE = 1e300  # an undefined ratio (an empty shape): violated beyond any bound
+
+
+def _on_track(q: float, before: float, remaining: int) -> bool:
+    """Whether ``q (q / before)^remaining <= 1``: the violation, shrinking from ``before`` to ``q``
+    per check and kept at that rate, meets its bound within ``remaining`` checks."""
+    return math.log(q) + max(remaining, 0) * (math.log(q) - math.log(before)) <= 0.0
+
+
 class CheckedMultipliers(WeightedSum):
     """Multipliers raised by the feasibility checks; see the module docstring.
 
@@ -223,13 +235,11 @@ class CheckedMultipliers(WeightedSum):
             verdict (:meth:`~ginn.train.task.Task.constraint_terms`); terms in no group keep their
             weights.
 
-    ``GROWTH`` (largest factor per check) and ``PROGRESS`` (the share of the previous violation
-    below which a constraint counts as progressing) are class constants: they act on ratios to
-    the tolerance, not on the problem's units.
+    ``GROWTH`` (the largest factor per check) is a class constant: it acts on ratios to the
+    tolerance, not on the problem's units.
     """
 
     GROWTH = 2.0
-    PROGRESS = 0.9
 
     def __init__(self, terms: dict[str, LossTerm], groups: dict[str, tuple[str, ...]], objectives=()):
         super().__init__(terms, objectives)
@@ -245,21 +255,22 @@ class CheckedMultipliers(WeightedSum):
                 return w * self.scale[c]
         return w
 
-    def on_check(self, ratios: dict[str, float | None]) -> dict[str, float]:
+    def on_check(self, ratios: dict[str, float | None], remaining: int) -> dict[str, float]:
         """Update from one check's worst ratios ``{constraint: value / bound}`` (None: undefined,
-        e.g. an empty shape); returns the factors applied ``{constraint: factor}``."""
+        e.g. an empty shape) with ``remaining`` checks still to come; returns the factors applied
+        ``{constraint: factor}``."""
         raised = {}
         for c in self.groups:
             if c not in ratios:
                 continue
             q = ratios[c]
-            q = math.inf if q is None else float(q)
+            q = _HUGE if q is None or not math.isfinite(float(q)) else max(float(q), 1e-300)
             before = self.previous.get(c)
-            if before is not None and q > 1.0 and q > self.PROGRESS * before:
+            if before is not None and q > 1.0 and not _on_track(q, before, remaining):
                 f = min(q * q, self.GROWTH)
                 self.scale[c] *= f
                 raised[c] = f
-            self.previous[c] = q if math.isfinite(q) else 1e300
+            self.previous[c] = q
         return raised
 
     def multipliers(self) -> dict[str, float]:

@@ -371,6 +371,12 @@ class Trainer:
         every = max(1, math.ceil(t.iterations / t.feasibility_checks))
         return self.step % every == 0 or self.step == t.iterations
 
+    def _checks_left(self) -> int:
+        """How many checks come after the current step (the last one at the final iteration)."""
+        t = self.cfg.training
+        every = max(1, math.ceil(t.iterations / t.feasibility_checks))
+        return math.ceil((t.iterations - self.step) / every)
+
     def _check_feasibility(self) -> dict | None:
         """Check the shapes against the problem's tolerances, log the summary (an event: ``step``
         is the number of completed iterations) and decide whether ``stop_when_feasible`` ends the
@@ -384,7 +390,9 @@ class Trainer:
                   "worst": summary["worst"], "violated": _violated_counts(summary)}
         if summary.get("ratios") is not None:
             record["ratios"] = summary["ratios"]
-        raised = self.balancer.on_check(summary.get("ratios") or {}) if self.step < self.cfg.training.iterations else {}
+        raised = {}
+        if self.step < self.cfg.training.iterations:
+            raised = self.balancer.on_check(summary.get("ratios") or {}, self._checks_left())
         if raised:
             record["raised"] = {k: round(v, 4) for k, v in raised.items()}
         interval_mean, n_mean, self._mean, self._mean_count = self._mean, self._mean_count, None, 0
