@@ -74,6 +74,18 @@ CASES = {
     "negative tolerance": (lambda r, t: (t / "tol.yaml").write_text(
         "name: a\ngeometry: {dim: 2, domain: {lo: [0, 0], hi: [1, 1]}}\ntolerances: {interface: -1}\n")
         and ["train", t / "tol.yaml"], "tolerances.interface"),
+    "negative hole count": (lambda r, t: (t / "h.yaml").write_text(
+        "name: a\ngeometry: {dim: 2, domain: {lo: [0, 0], hi: [1, 1]}}\ntopology: {holes: -1}\n")
+        and ["train", t / "h.yaml"], "spec field 'topology.holes': must be >= 0"),
+    "fractional hole count": (lambda r, t: (t / "h.yaml").write_text(
+        "name: a\ngeometry: {dim: 2, domain: {lo: [0, 0], hi: [1, 1]}}\ntopology: {holes: 1.5}\n")
+        and ["train", t / "h.yaml"], "spec field 'topology.holes'"),
+    "tunnels in 2D": (lambda r, t: (t / "h.yaml").write_text(
+        "name: a\ngeometry: {dim: 2, domain: {lo: [0, 0], hi: [1, 1]}}\ntopology: {tunnels: 1}\n")
+        and ["train", t / "h.yaml"], "spec field 'topology.tunnels': a 3D target"),
+    "two components": (lambda r, t: (t / "h.yaml").write_text(
+        "name: a\ngeometry: {dim: 2, domain: {lo: [0, 0], hi: [1, 1]}}\ntopology: {components: 2}\n")
+        and ["train", t / "h.yaml"], "spec field 'topology.components': only 1 is supported"),
     "export --latent nan": (lambda r, t: ["export", r, "--latent", "nan"], "--latent"),
     "2D export --format stl": (lambda r, t: ["export", r, "--format", "stl"], "--format stl"),
     "--iterations 0": (lambda r, t: ["train", "obstacle", "--iterations", "0"], "--iterations"),

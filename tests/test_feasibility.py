@@ -56,6 +56,22 @@ def test_spec_tolerances_reach_the_problem():
         == Tolerances(5e-3, 5e-3, True)
 
 
+def test_spec_topology_reaches_the_problem():
+    from ginn.problems.problem import Topology
+
+    def build(dim, topology, **tol):
+        lo, hi = [0] * dim, [1] * dim
+        return validate_spec({"name": "t", "geometry": {"dim": dim, "domain": {"lo": lo, "hi": hi}},
+                              "topology": topology, "tolerances": tol}).build()
+
+    assert build(2, {"holes": 2}).topology == Topology(b1=2) and build(2, {"holes": 2}).topology.targets == {1: 2}
+    p3 = build(3, {"tunnels": 1, "cavities": 0})
+    assert p3.topology == Topology(b1=1, b2=0) and p3.topology.targets == {1: 1, 2: 0}
+    assert build(2, {}).topology.targets == {}
+    # components: 1 asks for one piece, whatever tolerances.connected says
+    assert build(2, {"components": 1}, connected=False).tolerances.connected
+
+
 def _fields(problem):
     """Analytic shapes with known verdicts: E itself (feasible), the whole domain (volume outside E
     = 1, its boundary far from the interfaces), a small disk far from the interfaces (misses them), and thin disks around the two
@@ -118,6 +134,31 @@ def test_ratios_are_values_over_bounds(obstacle):
     assert summarize(shapes, obstacle)["ratios"] == {"interface": None, "volume_outside": pytest.approx(3.0),
                                                      "connected": 2.0}
     assert summarize(shapes[:2], obstacle)["ratios"]["interface"] == pytest.approx(1.6)
+
+
+def test_topology_targets_enter_the_verdict(obstacle):
+    import dataclasses
+
+    from ginn.eval.feasibility import feasibility_metrics, verdict_text
+    from ginn.problems.problem import Topology
+
+    p = dataclasses.replace(obstacle, topology=Topology(b1=2))
+    m = {"interface_cd1": 1e-3, "volume_outside": 0.0, "b0_in_design_region": 1, "connected_interfaces_share": 1.0,
+         "b1_in_design_region": 3, "b2_in_design_region": None}
+    v = violations(m, p)
+    assert v == {"topology": {"value": {"holes": 3}, "bound": {"holes": 2}}}
+    assert verdict_text(v) == "topology: 3 holes (want 2)"
+    assert ratios(m, p)["topology"] == 2.0 and ratios(dict(m, b1_in_design_region=0), p)["topology"] == 3.0
+    assert violations(dict(m, b1_in_design_region=2), p) == {} and ratios(dict(m, b1_in_design_region=2), p)["topology"] == 1.0
+    assert "b1_in_design_region" in feasibility_metrics(p) and "b1_in_design_region" not in feasibility_metrics(obstacle)
+    assert "topology" not in ratios(m, obstacle)  # no targets: no constraint
+    # the check and ginn eval count the same holes: E itself has one, round the obstacle's disk
+    field = as_field(p.design_region.sdf)
+    assert check_feasibility(field, None, dataclasses.replace(obstacle, topology=Topology(b1=1)), 128)["feasible"] == 1
+    coarse = check_feasibility(field, None, p, 128)
+    fine = evaluate_shapes(field, None, p, resolution=512)["feasibility"]
+    assert coarse["violations"][0]["topology"] == fine["violations"][0]["topology"] == \
+        {"value": {"holes": 1}, "bound": {"holes": 2}}
 
 
 def test_checks_raise_the_multipliers_they_log(tmp_path):

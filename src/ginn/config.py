@@ -120,6 +120,7 @@ class LossesConfig(_Strict):
     mean_curvature: LossTerm = LossTerm()
     strain: LossTerm = LossTerm()
     connectedness: LossTerm = LossTerm()
+    topology: LossTerm = LossTerm()
     diversity: LossTerm = LossTerm()
     containment_power: Literal[1, 2] = Field(
         2,
@@ -171,6 +172,14 @@ class ConnectednessConfig(_Strict):
     eps: float = Field(1e-2, gt=0, description="epsilon in p_k += 1/(d + eps)")
     margin: float = Field(0.0, ge=0, description="the loss sees the shape {f <= -margin}: connections thinner than "
                           "about 2 margin count as gaps and are pushed open (0: the paper's {f <= 0})")
+
+
+class TopologyConfig(_Strict):
+    """The loss toward the spec's target Betti numbers (``topology:``; docs/problem-spec.md)."""
+
+    grid: int = Field(64, ge=8, description="persistent-homology grid nodes along the longest axis of the domain; "
+                      "the margin of the loss is one cell of it")
+    every: int = Field(5, ge=1, description="recompute the persistence diagrams every K steps (the same cells between)")
 
 
 class BalancingConfig(_Strict):
@@ -373,6 +382,7 @@ class RunConfig(_Strict):
     sampling: SamplingConfig = SamplingConfig()
     diversity: DiversityConfig = DiversityConfig()
     connectedness: ConnectednessConfig = ConnectednessConfig()
+    topology: TopologyConfig = TopologyConfig()
     balancing: BalancingConfig = BalancingConfig()
     training: TrainingConfig = TrainingConfig()
     params: TaskParams = Field(ShapeParams(), description="task-specific parameters; `kind` selects the group")

@@ -6,7 +6,9 @@ A shape is feasible when every constraint of :class:`~ginn.problems.problem.Tole
 * ``volume_outside``: ``volume_outside_off_interfaces <= tolerances.volume_outside`` (the volume
   outside E beyond the interface tolerance of the interfaces, :mod:`ginn.eval.metrics`; metrics
   without it, e.g. of older runs, are judged by ``volume_outside``);
-* ``connected`` (when required): ``b0_in_design_region == 1`` and ``connected_interfaces_share == 1``.
+* ``connected`` (when required): ``b0_in_design_region == 1`` and ``connected_interfaces_share == 1``;
+* ``topology`` (when the spec states targets): ``b1_in_design_region`` (holes in 2D, tunnels in
+  3D) and ``b2_in_design_region`` (cavities) equal to them.
 
 The same function judges the final evaluation (``ginn eval``, at the evaluation resolution) and
 the check during training (:func:`check_feasibility`, on a coarse grid with only these metrics)::
@@ -27,7 +29,7 @@ from ..fields import Field
 from ..problems.problem import Problem
 from .metrics import MetricContext, extract_shape, prepare_context, shape_metrics
 
-__all__ = ["FEASIBILITY_METRICS", "judged_volume_outside", "violations", "ratios", "summarize", "verdict_text",
+__all__ = ["FEASIBILITY_METRICS", "BETTI_METRICS", "feasibility_metrics", "judged_volume_outside", "violations", "ratios", "summarize", "verdict_text",
            "format_feasibility", "short_summary", "check_feasibility", "FeasibilityCheck"]
 
 #: The metrics the verdict reads.
@@ -40,6 +42,31 @@ def judged_volume_outside(metrics: dict) -> float | None:
     measured, else ``volume_outside``."""
     v = metrics.get("volume_outside_off_interfaces")
     return metrics.get("volume_outside") if v is None else v
+
+
+#: The metric of each target Betti number.
+BETTI_METRICS = {1: "b1_in_design_region", 2: "b2_in_design_region"}
+
+
+def feasibility_metrics(problem: Problem) -> tuple[str, ...]:
+    """The metrics the verdict of ``problem`` reads: :data:`FEASIBILITY_METRICS` and those of its
+    topology targets."""
+    return FEASIBILITY_METRICS + tuple(BETTI_METRICS[k] for k in sorted(problem.topology.targets))
+
+
+def _betti_names(dim: int) -> dict[int, str]:
+    return {1: "holes"} if dim == 2 else {1: "tunnels", 2: "cavities"}
+
+
+def _topology_off(metrics: dict, problem: Problem) -> dict[str, tuple[int | None, int]]:
+    """``{name: (measured, target)}`` for each target Betti number the shape misses."""
+    names = _betti_names(problem.dim)
+    out = {}
+    for k, target in sorted(problem.topology.targets.items()):
+        got = metrics.get(BETTI_METRICS[k])
+        if got is None or int(got) != target:
+            out[names[k]] = (None if got is None else int(got), target)
+    return out
 
 
 def violations(metrics: dict, problem: Problem) -> dict[str, dict]:
@@ -67,6 +94,9 @@ def violations(metrics: dict, problem: Problem) -> dict[str, dict]:
             if share is not None:
                 v["interfaces"] = float(share)
             out["connected"] = v
+    off = _topology_off(metrics, problem)
+    if off:
+        out["topology"] = {"value": {k: v[0] for k, v in off.items()}, "bound": {k: v[1] for k, v in off.items()}}
     return out
 
 
@@ -74,7 +104,8 @@ def ratios(metrics: dict, problem: Problem) -> dict[str, float]:
     """Each constraint's value over its bound for one shape (above 1: violated; ``inf`` where the
     value is undefined, e.g. the CD1 of an empty shape). ``connected``: the number of pieces inside
     E, or the inverse share of interface components its pieces reach if that is larger (1 when
-    met, 0 pieces count as ``inf``)."""
+    met, 0 pieces count as ``inf``). ``topology``: 1 plus the total miss of the target Betti
+    numbers."""
     tol = problem.tolerances
     out: dict[str, float] = {}
     if problem.interfaces:
@@ -92,6 +123,9 @@ def ratios(metrics: dict, problem: Problem) -> dict[str, float]:
         else:
             missed = 1.0 / share if share is not None and share > 0 else (math.inf if share is not None else 1.0)
             out["connected"] = max(float(pieces), missed)
+    if problem.topology.targets:
+        off = _topology_off(metrics, problem).values()
+        out["topology"] = math.inf if any(g is None for g, _ in off) else 1.0 + sum(abs(g - t) for g, t in off)
     return out
 
 
@@ -131,6 +165,9 @@ def verdict_text(violated: dict[str, dict]) -> str:
             if d.get("interfaces") is not None and d["interfaces"] < 1:
                 text += f", {100 * d['interfaces']:.0f} % of the interfaces reached by one piece"
             parts.append(text)
+        elif name == "topology":
+            parts.append("topology: " + ", ".join(f"{v if v is not None else 'undefined'} {k} (want {d['bound'][k]})"
+                                                  for k, v in d["value"].items()))
         else:
             parts.append(f"{name} {_num(d['value'])} > {_num(d['bound'])}")
     return "; ".join(parts)
@@ -165,6 +202,7 @@ class FeasibilityCheck:
 
     def __init__(self, problem: Problem, resolution: int, seed: int = 0):
         self.problem = problem
+        self.metrics = feasibility_metrics(problem)
         self.context: MetricContext = prepare_context(problem, resolution, n_design_boundary_samples=0, seed=seed)
 
     def __call__(self, field: Field, Z: Tensor | None) -> dict:
@@ -175,7 +213,7 @@ class FeasibilityCheck:
         try:
             codes = [None] if Z is None else [Z[i] for i in range(Z.shape[0])]
             shapes = [
-                shape_metrics(extract_shape(field, z, self.context.grid), self.context, field, z, only=FEASIBILITY_METRICS)
+                shape_metrics(extract_shape(field, z, self.context.grid), self.context, field, z, only=self.metrics)
                 for z in codes
             ]
         finally:

@@ -31,6 +31,8 @@ obstacle            1000 / s                        (``containment_power`` 1, ``
 normal              10                              unit vectors: no scale
 eikonal             0.1                             |grad f| - 1: no scale
 connectedness       8 / s, margin 0.02 s            the mean penalised field value scales as s
+topology            8 / s; grid 64 (2D), 32 (3D)    hinges on field values, as connectedness
+                                                    (only with ``topology:`` targets)
 diversity           0.015 / s                       the aggregated shape distance scales as s
 iterations          2000 (2D), 3600 (3D)            learning rate halved every third of them
                                                     (of a stated budget too: ProblemSpec.config);
@@ -112,12 +114,13 @@ def derived_defaults(problem: Problem) -> tuple[dict, dict[str, str]]:
         "normal": {"weight": 10.0},
         "eikonal": {"weight": 0.1},
         "connectedness": {"weight": 8.0 / s},
+        "topology": {"weight": 8.0 / s},
         "diversity": {"weight": 0.015 / s},
         "containment_power": 1,
         "containment_slope": 1.0,
     }
     for k, v in (("interface", "3000 / s^2"), ("design_region", "300 / s"), ("obstacle", "1000 / s"),
-                 ("connectedness", "8 / s"), ("diversity", "0.015 / s")):
+                 ("connectedness", "8 / s"), ("topology", "8 / s, as connectedness"), ("diversity", "0.015 / s")):
         note(f"losses.{k}.weight", f"{v}, s = {s:.4g}")
     iterations = 2000 if d == 2 else 3600
     training = {"iterations": iterations, "lr": 1e-3, "lr_decay": 0.5, "lr_decay_every": iterations // 3}
@@ -132,6 +135,8 @@ def derived_defaults(problem: Problem) -> tuple[dict, dict[str, str]]:
     note("connectedness.margin", f"0.02 s, s = {s:.4g}")
     note("balancing.method", "the weights start the multipliers; each feasibility check raises those of a constraint "
                              "it finds violated and off track")
+    topo = {"grid": 64 if d == 2 else 32}
+    note("topology.grid", f"{topo['grid']} nodes along the longest side ({d}D)")
     out = {"model": model, "losses": losses, "sampling": sampling, "connectedness": conn, "training": training,
-           "balancing": {"method": "feasibility"}}
+           "balancing": {"method": "feasibility"}, "topology": topo}
     return out, why

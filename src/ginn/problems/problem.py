@@ -28,6 +28,25 @@ class Tolerances:
 
 
 @dataclass(frozen=True)
+class Topology:
+    """The Betti numbers every shape must have inside E (None: free), counted as
+    :func:`ginn.topology.betti_numbers` counts them (holes round an obstacle count).
+
+    Attributes:
+        b1: 2D: holes; 3D: tunnels.
+        b2: 3D: cavities (enclosed voids).
+    """
+
+    b1: int | None = None
+    b2: int | None = None
+
+    @property
+    def targets(self) -> dict[int, int]:
+        """``{dimension: target}`` for the stated ones."""
+        return {k: v for k, v in ((1, self.b1), (2, self.b2)) if v is not None}
+
+
+@dataclass(frozen=True)
 class Problem:
     """A design problem: the shape ``Omega = {f <= 0}`` must lie in ``design_region`` inside
     ``domain``, touch every interface (with its prescribed normals), and avoid the obstacles.
@@ -41,6 +60,7 @@ class Problem:
         interface_band: half-width of the denser sampling band around the interfaces (0: none).
         unit_scale: length scale at which metric tolerances such as eps = 0.01 are stated.
         tolerances: when a shape is feasible (:class:`Tolerances`).
+        topology: the Betti numbers each shape must have (:class:`Topology`; part of the verdict).
         reference: an independent reference solution evaluation compares against
             (``"minimal-surface"``), or None.
     """
@@ -53,6 +73,7 @@ class Problem:
     interface_band: float = 0.0
     unit_scale: float = 1.0
     tolerances: Tolerances = field(default_factory=Tolerances)
+    topology: Topology = field(default_factory=Topology)
     description: str = ""
     reference: str | None = None
     extra: dict = field(default_factory=dict)

@@ -23,8 +23,8 @@ from ..geometry import csg
 from ..geometry.base import Box
 from .derived import derived_defaults, half_longest_side
 from .interfaces import INTERFACE_TYPES, InterfaceSpec
-from .nodes import Node, NonNegative, Point, Positive, check_lo_hi
-from .problem import Problem, Tolerances
+from .nodes import Node, NonNegative, Point, Positive, check_lo_hi, spec_dim
+from .problem import Problem, Tolerances, Topology
 from .regions import REGION_TYPES, RegionSpec
 
 
@@ -64,6 +64,42 @@ class TolerancesSpec(Node):
         10.0, description="mean deviation of the normals from the prescribed ones, degrees (a training target)")
 
 
+Count = Annotated[int, Field(ge=0, strict=True)]
+
+
+class TopologySpec(Node):
+    """The topology every shape must have inside E (:class:`~ginn.problems.problem.Topology`)."""
+
+    components: Literal[1] | None = Field(None, description="1: one piece (the same as tolerances.connected: true)")
+    holes: Count | None = Field(None, description="2D: the number of holes (b1)")
+    tunnels: Count | None = Field(None, description="3D: the number of tunnels (b1)")
+    cavities: Count | None = Field(None, description="3D: the number of enclosed cavities (b2)")
+
+    @field_validator("components", mode="before")
+    @classmethod
+    def _one_piece(cls, v):
+        if v is not None and v != 1:
+            raise ValueError(f"only 1 is supported (one piece inside E), got {v!r}; leave it out for no requirement")
+        return v
+
+    @field_validator("holes")
+    @classmethod
+    def _holes_are_2d(cls, v, info: ValidationInfo):
+        if v is not None and spec_dim(info) == 3:
+            raise ValueError("a 2D target; a 3D problem states tunnels and cavities")
+        return v
+
+    @field_validator("tunnels", "cavities")
+    @classmethod
+    def _tunnels_are_3d(cls, v, info: ValidationInfo):
+        if v is not None and spec_dim(info) == 2:
+            raise ValueError("a 3D target; a 2D problem states holes")
+        return v
+
+    def build(self, dim: int) -> Topology:
+        return Topology(b1=self.holes if dim == 2 else self.tunnels, b2=self.cavities if dim == 3 else None)
+
+
 class ProblemSpec(BaseModel):
     """A validated problem spec. ``defaults`` and ``presets`` are partial RunConfig dicts.
 
@@ -81,6 +117,7 @@ class ProblemSpec(BaseModel):
         "(the interfaces are a closed polygon; the discrete minimal surface spanning it)")
     geometry: GeometrySpec | None = Field(default=None, validate_default=True)
     tolerances: TolerancesSpec = Field(default_factory=TolerancesSpec)
+    topology: TopologySpec = Field(default_factory=TopologySpec)
     defaults: dict[str, Any] = Field(default_factory=dict)
     presets: dict[str, dict[str, Any]] = Field(default_factory=dict)
     _base_dir: Path | None = PrivateAttr(default=None)
@@ -221,7 +258,9 @@ class ProblemSpec(BaseModel):
             obstacles=obstacles,
             interface_band=float(g.interface_band),
             unit_scale=float(g.unit_scale) if g.unit_scale is not None else half_longest_side(domain),
-            tolerances=Tolerances(**self.tolerances.model_dump()),
+            tolerances=Tolerances(**{**self.tolerances.model_dump(),
+                                     "connected": self.tolerances.connected or self.topology.components == 1}),
+            topology=self.topology.build(dim),
             description=self.description,
             reference=self.reference,
             extra={"kind": self.kind, "source": self._source},

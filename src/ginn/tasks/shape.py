@@ -34,6 +34,7 @@ from ..models.latents import fixed_latents, latent_dim, random_latents
 from ..problems.derived import length_scale
 from ..problems.problem import Problem
 from ..topology import ConnectednessLossBase, make_connectedness_loss
+from ..topology.holes import HoleCountLoss
 from ..train.distributed import DistContext, cross_values_sharded
 from ..train.task import Task
 from ..viz.explorer import write_explorer
@@ -61,6 +62,7 @@ class ShapeTask(Task):
         self.Z = fixed_latents(cfg.latents, self.device, dtype)
         self.lo, self.hi = problem.domain.tensors(self.device, dtype)
         self._conn: ConnectednessLossBase | None = None
+        self._holes: HoleCountLoss | None = None
         self._check: FeasibilityCheck | None = None
         self._iface_cloud: cKDTree | None = None  # a dense sample of the interfaces
         s = cfg.sampling
@@ -120,17 +122,24 @@ class ShapeTask(Task):
             out["diversity"] = L.diversity
         if not self.problem.interfaces:
             out.pop("interface")
+        if self.problem.topology.targets:
+            out["topology"] = L.topology
         return out
 
     def latents(self) -> Tensor | None:
         return self.Z
 
     def state_dict(self) -> dict:
-        return {"connectedness": self._conn.state_dict()} if self._conn is not None else {}
+        out = {"connectedness": self._conn.state_dict()} if self._conn is not None else {}
+        if self._holes is not None:
+            out["topology"] = self._holes.state_dict()
+        return out
 
     def load_state_dict(self, state: dict) -> None:
         if "connectedness" in state and state["connectedness"]:
             self.connectedness_loss().load_state_dict(state["connectedness"])
+        if state.get("topology"):
+            self.hole_loss().load_state_dict(state["topology"])
 
     def distribute(self, ctx: DistContext) -> None:
         """Train only this rank's slice of the shapes (``ginn.train.distributed``)."""
@@ -148,6 +157,14 @@ class ShapeTask(Task):
                 self.dtype,
             )
         return self._conn
+
+    def hole_loss(self) -> HoleCountLoss:
+        """The loss toward the problem's target Betti numbers (:mod:`ginn.topology.holes`)."""
+        if self._holes is None:
+            t = self.cfg.topology
+            self._holes = HoleCountLoss(self.problem.domain, self.problem.design_region, self.problem.topology.targets,
+                                        t.grid, t.every, self.device, self.dtype)
+        return self._holes
 
     # --- sampling ----------------------------------------------------------------------------
 
@@ -238,6 +255,8 @@ class ShapeTask(Task):
             margin = self.cfg.connectedness.margin
             field = model if margin == 0 else fields.Shifted(model, margin)
             out["connectedness"] = self.connectedness_loss()(field, Z)
+        if "topology" in active:
+            out["topology"] = self.hole_loss()(model, Z)
         return out
 
     def _containment_floor(self, x: Tensor, regions, sign: float) -> Tensor | float:
@@ -374,9 +393,9 @@ class ShapeTask(Task):
     def constraint_terms(self) -> dict[str, tuple[str, ...]]:
         """The verdict's constraints (:func:`ginn.eval.feasibility.ratios`) and the loss terms
         that enforce them: the interface values, the containment terms (the volume outside E
-        counts the obstacles) and the connectedness loss."""
+        counts the obstacles), the connectedness loss and the hole-count loss."""
         return {"interface": ("interface",), "volume_outside": ("design_region", "obstacle"),
-                "connected": ("connectedness",)}
+                "connected": ("connectedness",), "topology": ("topology",)}
 
     def feasibility(self, model: nn.Module) -> dict | None:
         """The problem's tolerances checked on a coarse grid (``RESOLUTION['check']``), with the

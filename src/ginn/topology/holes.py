@@ -1,0 +1,213 @@
+"""Hole counts toward targets by cubical persistent homology (holes in 2D, tunnels and cavities in 3D).
+
+The field of every shape is sampled on a vertex grid over the domain and its sublevel-set
+filtration handed to ``cripser`` (``computePH(values, maxdim=d - 1)``, V-construction: the same
+cells as :mod:`ginn.topology.persistent` and :func:`ginn.topology.betti_numbers`). A feature of
+dimension ``k`` (``k = 1``: a hole in 2D, a tunnel in 3D; ``k = 2``: a cavity) is *born* at the
+level ``b`` where it closes, at its birth cell, and *dies* at the level ``d`` where it fills, at
+its death cell. The features of the shape ``{f <= 0}`` are those with ``b <= 0 < d``. Nodes outside
+E get a value above every field value, so a hole round an obstacle (or any part of X \\ E) dies
+only at that value: it can be opened but not filled.
+
+For a target ``t_k`` and the ``n_k`` features alive at 0, with a margin ``m`` (one cell of the
+grid: a feature must be wider than the grid to be seen, a gap too):
+
+* **surplus** (``n_k > t_k``): the ``n_k - t_k`` features cheapest to remove go, each the cheaper
+  way: *open* it (``f`` at the birth cell up to ``+m``: a change of ``m - b``) or *fill* it (``f``
+  at the death cell down to ``-m``: ``d + m``; not for a death cell outside E);
+* **missing** (``n_k < t_k``): among the features not alive at 0 whose persistence ``d - b``
+  exceeds ``2 m`` (room for the margin on both sides), the ``t_k - n_k`` cheapest to bring to
+  life: one born above 0 gets ``f`` at its birth cell down to ``-m``, one that died at or below 0
+  gets ``f`` at its death cell up to ``+m``;
+* **kept**: the other features alive at 0 are held with ``b <= -m`` and ``d >= m``.
+
+Each move is a hinge on the field at a fixed cell centre (``relu(m - f(x))`` to raise,
+``relu(f(x) + m)`` to lower), so the loss is zero once every shape has its target Betti numbers
+with the margin; the batch loss is the sum of a shape's hinges, averaged over the shapes. A field
+with no feature to bring to life (a disk has no dimension-1 feature at any level) gets no push
+from this loss; training fields have many small features to start from.
+
+The persistence diagram is recomputed every ``every`` calls; in between the same cells are
+penalised with the field's current values.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from ..extract.grid import node_grid
+from ..geometry.base import Box, Region
+from .components import field_on_grid
+from .critical import latents_of
+
+__all__ = ["FeatureMoves", "feature_moves", "HoleCountLoss"]
+
+
+@dataclass
+class FeatureMoves:
+    """The cells one shape's field is pushed at, and which way.
+
+    Attributes:
+        index: grid indices of the cells ``(q, d)`` (int).
+        raise_: ``(q,)`` bool, True: push ``f`` up to ``+m`` there; False: down to ``-m``.
+        counts: the Betti numbers of ``{f <= 0}`` on the grid, ``{k: n_k}``.
+    """
+
+    index: np.ndarray
+    raise_: np.ndarray
+    counts: dict[int, int]
+
+
+def _pairs(values: np.ndarray, maxdim: int) -> np.ndarray:
+    import cripser
+
+    return np.asarray(cripser.computePH(np.ascontiguousarray(values, dtype=np.float64), maxdim=maxdim))
+
+
+def feature_moves(values: np.ndarray, targets: dict[int, int], margin: float,
+                  outside: np.ndarray | None = None, outside_value: float | None = None) -> FeatureMoves:
+    """The cells and directions of the module docstring for one shape.
+
+    Arguments:
+        values: grid values of one shape, 2D or 3D, with the nodes outside E already set to
+            ``outside_value`` (above every field value).
+        targets: ``{k: t_k}`` for ``k`` in 1..d-1.
+        margin: ``m``, in the units of ``values``.
+        outside: boolean grid of the nodes outside E (their cells cannot be moved), or None.
+        outside_value: the value given to those nodes.
+    """
+    d = values.ndim
+    ph = _pairs(values, max(targets)) if targets else np.zeros((0, 9))
+    idx: list[np.ndarray] = []
+    up: list[bool] = []
+    counts: dict[int, int] = {}
+
+    def movable(cell: np.ndarray) -> bool:
+        return outside is None or not bool(outside[tuple(cell)])
+
+    def push(cell: np.ndarray, raise_: bool):
+        if movable(cell):
+            idx.append(cell)
+            up.append(raise_)
+
+    for k, target in sorted(targets.items()):
+        rows = ph[ph[:, 0] == k] if ph.size else ph
+        birth, death = rows[:, 1], rows[:, 2]
+        bcell = rows[:, 3:3 + d].astype(np.int64)
+        dcell = rows[:, 6:6 + d].astype(np.int64)
+        fillable = np.array([movable(c) and (outside_value is None or death[i] < outside_value)
+                             for i, c in enumerate(dcell)], dtype=bool)
+        alive = (birth <= 0.0) & (death > 0.0)
+        counts[k] = int(alive.sum())
+        live = np.flatnonzero(alive)
+        # the cost of removing each live feature: open (birth up to +m) or fill (death down to -m)
+        open_cost = margin - birth[live]
+        fill_cost = np.where(fillable[live], death[live] + margin, np.inf)
+        remove = np.minimum(open_cost, fill_cost)
+        order = live[np.argsort(remove, kind="stable")]
+        surplus = max(0, len(live) - target)
+        for j, i in enumerate(order):
+            if j < surplus:  # the cheapest to remove
+                fill = fill_cost[np.flatnonzero(live == i)[0]] < open_cost[np.flatnonzero(live == i)[0]]
+                push(dcell[i] if fill else bcell[i], raise_=not fill)
+            else:  # kept: hold the margin on both sides
+                if birth[i] > -margin:
+                    push(bcell[i], raise_=False)
+                if fillable[i] and death[i] < margin:
+                    push(dcell[i], raise_=True)
+        missing = max(0, target - len(live))
+        if missing:
+            cand = np.flatnonzero(~alive & (death - birth > 2.0 * margin) & (death < np.finfo(np.float64).max / 2))
+            # born above 0: lower the birth cell (cost b + m); died at or below 0: raise the death cell (m - d)
+            born_late = birth[cand] > 0.0
+            cost = np.where(born_late, birth[cand] + margin, np.where(fillable[cand], margin - death[cand], np.inf))
+            for i, late, c in sorted(zip(cand, born_late, cost), key=lambda t: t[2])[:missing]:
+                if np.isfinite(c):
+                    push(bcell[i] if late else dcell[i], raise_=not late)
+    index = np.stack(idx).astype(np.int64) if idx else np.zeros((0, d), np.int64)
+    return FeatureMoves(index, np.asarray(up, dtype=bool), counts)
+
+
+class HoleCountLoss:
+    """The loss of the module docstring for all shapes of a batch.
+
+    Arguments:
+        domain: the box X (the grid spans it).
+        design_region: E (nodes outside it are outside every shape), or None.
+        targets: ``{k: t_k}``, ``k`` in 1..d-1 (:attr:`ginn.problems.problem.Topology.targets`).
+        resolution: grid nodes along the longest axis.
+        every: recompute the persistence diagram every this many calls.
+        device, dtype: of the grid points.
+
+    Call ``loss(field, Z)`` with ``Z (S, k)`` or None; returns a scalar. ``last_info`` holds the
+    Betti numbers of the last recomputation (``counts``: one dict per shape) and the number of
+    penalised cells.
+    """
+
+    def __init__(self, domain: Box, design_region: Region | None, targets: dict[int, int], resolution: int = 64,
+                 every: int = 1, device=None, dtype=torch.float32):
+        self.domain, self.targets = domain, dict(targets)
+        self.resolution, self.every = int(resolution), max(1, int(every))
+        self.device, self.dtype = torch.device(device or "cpu"), dtype
+        grid = node_grid(domain, self.resolution)
+        pts = grid.tensor_points(self.device, dtype)
+        self._grid = pts.reshape(*grid.shape, -1)
+        self.margin = float(max((h - lo) / (n - 1) for lo, h, n in zip(domain.lo, domain.hi, grid.shape)))
+        self._outside = None
+        if design_region is not None:
+            self._outside = ~design_region.contains(pts).reshape(grid.shape).cpu().numpy().astype(bool)
+        self._calls = 0
+        self._cells: tuple[Tensor, Tensor, Tensor] | None = None  # points (q, d), shape index (q,), sign (q,)
+        self.last_info: dict = {}
+
+    def state_dict(self) -> dict:
+        cells = None if self._cells is None else [t.cpu() for t in self._cells]
+        return {"calls": self._calls, "cells": cells}
+
+    def load_state_dict(self, state: dict) -> None:
+        self._calls = int(state.get("calls", 0))
+        cells = state.get("cells")
+        self._cells = None if cells is None else tuple(t.to(self.device) for t in cells)
+
+    def _recompute(self, field, Z: Tensor | None) -> None:
+        S = 1 if Z is None else int(Z.shape[0])
+        Zd = None if Z is None else Z.detach().to(self.device, self.dtype)
+        vals, _, _ = field_on_grid(field, Zd, self.domain, self.resolution, self.device, self.dtype)
+        top = None
+        if self._outside is not None:
+            vals = vals.copy()
+            top = float(np.abs(vals).max()) + 1.0
+            vals[:, self._outside] = top
+        xs, ss, signs, counts = [], [], [], []
+        for s in range(S):
+            mv = feature_moves(vals[s], self.targets, self.margin, self._outside, top)
+            counts.append(mv.counts)
+            if len(mv.index):
+                xs.append(self._grid[tuple(torch.from_numpy(mv.index).T)])
+                ss.append(torch.full((len(mv.index),), s, dtype=torch.long))
+                signs.append(torch.from_numpy(np.where(mv.raise_, 1.0, -1.0)))
+        if xs:
+            self._cells = (torch.cat(xs), torch.cat(ss).to(self.device), torch.cat(signs).to(self.device))
+        else:
+            self._cells = (self._grid.reshape(-1, self.domain.dim)[:0], torch.zeros(0, dtype=torch.long, device=self.device),
+                           torch.zeros(0, device=self.device, dtype=torch.float64))
+        self.last_info = {"counts": counts}
+
+    def __call__(self, field, Z: Tensor | None) -> Tensor:
+        t0 = time.perf_counter()
+        if self._cells is None or self._calls % self.every == 0:
+            self._recompute(field, Z)
+        self._calls += 1
+        x, sh, sign = self._cells
+        S = 1 if Z is None else int(Z.shape[0])
+        f = field(x.detach(), latents_of(Z, sh))
+        sign = sign.to(device=f.device, dtype=f.dtype)
+        # raise (sign +1): relu(m - f); lower (sign -1): relu(f + m)
+        loss = torch.relu(self.margin - sign * f).sum() / S
+        self.last_info.update({"time": time.perf_counter() - t0, "n_penalised": int(len(sign))})
+        return loss

@@ -1,0 +1,133 @@
+"""The loss toward target Betti numbers (ginn.topology.holes) on analytic fields with known
+persistence: a ring's hole is born on the ring (at minus half its width) and dies at its centre
+(at the hole's radius)."""
+
+import numpy as np
+import pytest
+import torch
+
+from ginn.geometry.base import Box
+from ginn.geometry.primitives import AABox, Ball
+from ginn.geometry import csg
+from ginn.topology import betti_numbers
+from ginn.topology.holes import HoleCountLoss, feature_moves
+
+N = 65
+XS = np.linspace(-1, 1, N)
+X, Y = np.meshgrid(XS, XS, indexing="ij")
+R = np.hypot(X, Y)
+M = 2 / (N - 1)  # the margin: one cell
+
+
+def ring(radius, half_width, cx=0.0):
+    return np.abs(np.hypot(X - cx, Y) - radius) - half_width
+
+
+def _at(cell):
+    return np.array([XS[cell[0]], XS[cell[1]]])
+
+
+def test_a_thin_ring_is_opened_and_a_thick_one_filled():
+    # thin: opening needs m + 0.05, filling m + 0.55: the birth cell (on the ring) goes up
+    mv = feature_moves(ring(0.6, 0.05), {1: 0}, M)
+    assert mv.counts == {1: 1} and len(mv.index) == 1 and mv.raise_.tolist() == [True]
+    assert abs(np.hypot(*_at(mv.index[0])) - 0.6) <= 0.05 + M
+    # thick ring round a hole of radius 0.1: filling needs m + 0.1, opening m + 0.35: the death cell (centre) goes down
+    mv = feature_moves(ring(0.45, 0.35), {1: 0}, M)
+    assert mv.raise_.tolist() == [False] and np.hypot(*_at(mv.index[0])) <= M
+
+
+def test_a_hole_round_a_part_outside_E_can_only_be_opened():
+    outside = R <= 0.15
+    values = ring(0.45, 0.35).copy()
+    top = float(np.abs(values).max()) + 1.0
+    values[outside] = top
+    mv = feature_moves(values, {1: 0}, M, outside, top)
+    assert mv.counts == {1: 1} and mv.raise_.tolist() == [True]
+    assert np.hypot(*_at(mv.index[0])) > 0.15  # a cell of the ring, not of the region outside E
+
+
+def test_kept_missing_and_surplus_holes():
+    wide = ring(0.6, 0.2)  # born at -0.2, dies at 0.4: held with the margin, nothing to do
+    mv = feature_moves(wide, {1: 1}, M)
+    assert mv.counts == {1: 1} and len(mv.index) == 0
+    # a disk with a bump inside that stays below 0: a hole that died at -0.3; a target of 1 raises it
+    dimple = R - 0.7 + 0.4 * np.exp(-(R / 0.15) ** 2)
+    mv = feature_moves(dimple, {1: 1}, M)
+    assert mv.counts == {1: 0} and mv.raise_.tolist() == [True] and np.hypot(*_at(mv.index[0])) <= M
+    # two rings, one wanted: one goes (opened: the thin rings are cheaper to open than to fill)
+    two = np.minimum(ring(0.25, 0.1, 0.45), ring(0.3, 0.1, -0.45))
+    mv = feature_moves(two, {1: 1}, M)
+    assert mv.counts == {1: 2} and mv.raise_.tolist() == [True]
+    assert feature_moves(two, {1: 2}, M).index.shape == (0, 2)
+    # a disk has no dimension-1 feature at any level: nothing to bring to life
+    assert feature_moves(R - 0.5, {1: 1}, M).index.shape == (0, 2)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_counts_are_the_betti_numbers_of_the_shape(seed):
+    rng = np.random.default_rng(seed)
+    from scipy.ndimage import gaussian_filter
+
+    v = gaussian_filter(rng.standard_normal((N, N)), 3.0)
+    v = v - np.median(v)
+    assert feature_moves(v, {1: 0}, M).counts[1] == betti_numbers(v <= 0)[1]
+    v3 = gaussian_filter(rng.standard_normal((24, 24, 24)), 2.0)
+    v3 = v3 - np.median(v3)
+    counts = feature_moves(v3, {1: 0, 2: 0}, 2 / 23).counts
+    assert (counts[1], counts[2]) == tuple(betti_numbers(v3 <= 0)[1:])
+
+
+class RingPlusBumps(torch.nn.Module):
+    """An analytic ring SDF plus learnable Gaussian bumps on a 17 x 17 lattice (zero at first)."""
+
+    def __init__(self, radius, half_width):
+        super().__init__()
+        self.radius, self.half_width = radius, half_width
+        c = torch.linspace(-1, 1, 17, dtype=torch.float64)
+        self.centres = torch.stack(torch.meshgrid(c, c, indexing="ij"), dim=-1).reshape(-1, 2)
+        self.coef = torch.nn.Parameter(torch.zeros(len(self.centres), dtype=torch.float64))
+
+    def forward(self, x, z=None):
+        base = (x.norm(dim=-1) - self.radius).abs() - self.half_width
+        phi = torch.exp(-((x[:, None, :] - self.centres[None]) ** 2).sum(-1) / 0.125**2)
+        return base + phi @ self.coef
+
+
+@pytest.mark.parametrize("radius, half_width, up", [(0.6, 0.05, True), (0.45, 0.35, False)])
+def test_one_gradient_step_moves_the_field_at_the_chosen_cell(radius, half_width, up):
+    """Thin ring: the field rises where the loss opens it (on the ring); thick ring: it falls at
+    the centre, where the loss fills the hole; the largest change is at that cell."""
+    field = RingPlusBumps(radius, half_width)
+    loss_fn = HoleCountLoss(Box((-1.0, -1.0), (1.0, 1.0)), None, {1: 0}, resolution=N, dtype=torch.float64)
+    loss = loss_fn(field, None)
+    assert loss.item() > 0
+    cell = loss_fn._cells[0][0]
+    grid = torch.stack(torch.meshgrid(*(torch.linspace(-1, 1, 129, dtype=torch.float64),) * 2, indexing="ij"), -1).reshape(-1, 2)
+    before = field(grid).detach()
+    loss.backward()
+    with torch.no_grad():
+        field.coef -= 0.01 * field.coef.grad
+    change = field(grid).detach() - before
+    at = field(cell[None]).detach() - (RingPlusBumps(radius, half_width)(cell[None]))
+    assert (at.item() > 0) == up and abs(at.item()) > 0
+    peak = grid[change.abs().argmax()]
+    assert (peak - cell).norm().item() <= 0.125  # one bump width
+
+
+def test_loss_state_round_trips_and_is_zero_at_the_targets():
+    box = Box((-1.0, -1.0), (1.0, 1.0))
+    wide = RingPlusBumps(0.6, 0.2)
+    done = HoleCountLoss(box, None, {1: 1}, resolution=N, dtype=torch.float64)
+    assert done(wide, None).item() == 0.0 and done.last_info["counts"] == [{1: 1}]
+    a = HoleCountLoss(box, None, {1: 0}, resolution=N, every=3, dtype=torch.float64)
+    a(wide, None)
+    b = HoleCountLoss(box, None, {1: 0}, resolution=N, every=3, dtype=torch.float64)
+    b.load_state_dict(a.state_dict())
+    for _ in range(4):  # the same cells, then the same recomputation
+        assert a(wide, None).item() == b(wide, None).item()
+    E = csg.Difference(AABox([-1.0, -1.0], [1.0, 1.0]), Ball([0.0, 0.0], 0.3))
+    inside = HoleCountLoss(box, E, {1: 0}, resolution=N, dtype=torch.float64)
+    inside(RingPlusBumps(0.45, 0.35), None)
+    x = inside._cells[0]
+    assert len(x) == 1 and x[0].norm().item() > 0.3  # the hole round the region outside E is opened
