@@ -231,3 +231,59 @@ def test_plain_progress_for_a_log_file():
     assert len(lines) == 10 and "\r" not in out.getvalue()
     assert lines[0].startswith("iteration 10/100 (10 %") and lines[-1].startswith("iteration 100/100 (100 %")
     assert lines[-1].endswith("total 1.00e-02")
+
+
+class PolynomialFit(Task):
+    """Least squares: f(x) = w . (1, x, y, x^2, x y, y^2) fitted to a known member of that span,
+    so the minimum is 0 at the known coefficients. Records the points of every evaluation."""
+
+    kind = "toy"
+    TRUE = torch.tensor([0.3, -1.0, 0.5, 2.0, -0.7, 1.2], dtype=torch.float64)
+
+    def __init__(self, cfg, device="cpu", dtype=torch.float64):
+        super().__init__(cfg, device, dtype)
+        self.seen: list[tuple[int, float]] = []
+
+    def build_model(self):
+        return torch.nn.Linear(6, 1, bias=False)
+
+    def terms(self):
+        return {"fit": LossTerm(weight=1.0)}
+
+    @staticmethod
+    def features(x):
+        return torch.stack([torch.ones_like(x[:, 0]), x[:, 0], x[:, 1], x[:, 0] ** 2, x[:, 0] * x[:, 1], x[:, 1] ** 2], 1)
+
+    def loss_terms(self, model, step, active, gen):
+        x = torch.rand(32, 2, generator=gen, dtype=self.dtype) * 2 - 1
+        self.seen.append((step, float(x.sum())))
+        phi = self.features(x)
+        return {"fit": (model(phi).squeeze(-1) - phi @ self.TRUE).pow(2).mean()}
+
+
+def test_lbfgs_phase_reaches_the_least_squares_minimum_on_one_sample():
+    c = build_config({"training": {"iterations": 5, "lbfgs_steps": 3, "lr": 1e-2, "log_every": 1,
+                                   "dtype": "float64", "feasibility_checks": 0}, "seed": 0})
+    task = PolynomialFit(c)
+    tr = Trainer(task, c, None, progress=False)
+    out = tr.train()
+    assert tr.step == 8 and isinstance(tr.lbfgs, torch.optim.LBFGS)
+    w = out.model.weight.detach().reshape(-1)
+    # Adam alone is 2.3 off after 5 steps; L-BFGS stops when the loss changes by less than 1e-9
+    assert (w - PolynomialFit.TRUE).abs().max().item() < 1e-4
+    phase = [v for s, v in task.seen if s >= 5]
+    assert len(phase) > 10 and len(set(phase)) == 1  # every evaluation of the phase sees the same points
+    assert len({v for s, v in task.seen if s < 5}) == 5  # Adam: a fresh sample every step
+
+
+def test_resume_in_the_lbfgs_phase_is_bitwise_identical(tmp_path):
+    def config(lbfgs):
+        return build_config({"training": {"iterations": 6, "lbfgs_steps": lbfgs, "lr": 1e-2, "log_every": 1,
+                                          "checkpoint_every": 4, "feasibility_checks": 0}, "seed": 1})
+
+    full = Trainer(CircleFit(config(8)), config(8), tmp_path / "a", progress=False).train()
+    Trainer(CircleFit(config(3)), config(3), tmp_path / "b", progress=False).train()  # stops inside the phase
+    resumed = Trainer(CircleFit(config(8)), config(8), tmp_path / "b", progress=False)
+    assert resumed.resume() and resumed.step == 9 and resumed.lbfgs is not None
+    out = resumed.train()
+    assert torch.equal(weights(full.model), weights(out.model))

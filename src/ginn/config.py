@@ -212,6 +212,9 @@ class TrainingConfig(_Strict):
         0, ge=0, description="from this iteration on (0: never) the learning rate restarts at lr_restart and decays "
         "from there: lr_restart * lr_decay^((t - lr_restart_at) / lr_decay_every)")
     lr_restart: float = Field(1e-4, gt=0, description="learning rate at iteration lr_restart_at")
+    lbfgs_steps: int = Field(
+        0, ge=0, description="after the Adam iterations, this many L-BFGS steps on one fixed sample of points, the "
+        "multipliers held; each step is up to 20 L-BFGS iterations (strong-Wolfe line search, history 20); 0: none")
     grad_clip: float = Field(1.0, ge=0, description="clip the gradient norm (0: off)")
     log_every: int = Field(10, ge=1, description="iterations between lines of metrics.jsonl")
     checkpoint_every: int = Field(200, ge=1, description="iterations between checkpoints (also written on SIGINT/SIGTERM and at the end)")

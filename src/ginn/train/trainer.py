@@ -199,6 +199,10 @@ class Trainer:
         self._mean_count = 0
         self._averaging = (cfg.training.keep_most_feasible and dist is None and cfg.training.feasibility_checks > 0)
         self.restored: dict | None = None  # the 'restored' event, when the run ended with the best weights
+        # training.lbfgs_steps: the L-BFGS optimiser of the final phase and the generator state
+        # that fixes its sample (created at the phase's first step)
+        self.lbfgs: torch.optim.LBFGS | None = None
+        self._lbfgs_sample: Tensor | None = None
         self._tb: TensorBoardLog | None = None  # opened by train() with training.log: [..., tensorboard]
         if "tensorboard" in cfg.training.log and not tensorboard_available():
             raise ConfigError("training.log: tensorboard needs the tensorboard package (pip install 'ginn[track]')")
@@ -224,6 +228,7 @@ class Trainer:
             "balancer": self.balancer.state_dict(),
             "task": self.task.state_dict(),
             "rng": rng_state(self.gen),
+            "lbfgs": None if self.lbfgs is None else {"optimizer": self.lbfgs.state_dict(), "sample": self._lbfgs_sample},
             "feasibility": {"last": self.feasibility, "objective": list(self._objective),
                             "objective_before": self._objective_before, "best": self.best,
                             "mean": self._mean, "mean_count": self._mean_count, "averaging": self._averaging},
@@ -244,6 +249,10 @@ class Trainer:
         else:
             self.task.load_state_dict(state["task"])
             set_rng_state(state["rng"], self.gen)
+        lbfgs = state.get("lbfgs")
+        if lbfgs is not None:
+            self._start_lbfgs(lbfgs["sample"])
+            self.lbfgs.load_state_dict(lbfgs["optimizer"])
         self.step = int(state["step"])
         self.elapsed = float(state.get("elapsed", 0.0))
         self.lr_scale = float(state.get("lr_scale", 1.0))
@@ -369,13 +378,18 @@ class Trainer:
         if t.feasibility_checks <= 0 or self.dist is not None or t.iterations <= 0:
             return False
         every = max(1, math.ceil(t.iterations / t.feasibility_checks))
-        return self.step % every == 0 or self.step == t.iterations
+        return self.step % every == 0 or self.step in (t.iterations, self.total_iterations)
 
     def _checks_left(self) -> int:
         """How many checks come after the current step (the last one at the final iteration)."""
         t = self.cfg.training
         every = max(1, math.ceil(t.iterations / t.feasibility_checks))
         return math.ceil((t.iterations - self.step) / every)
+
+    @property
+    def total_iterations(self) -> int:
+        """The Adam iterations and the L-BFGS steps after them."""
+        return self.cfg.training.iterations + self.cfg.training.lbfgs_steps
 
     def _check_feasibility(self) -> dict | None:
         """Check the shapes against the problem's tolerances, log the summary (an event: ``step``
@@ -391,7 +405,7 @@ class Trainer:
         if summary.get("ratios") is not None:
             record["ratios"] = summary["ratios"]
         raised = {}
-        if self.step < self.cfg.training.iterations:
+        if self.step < self.cfg.training.iterations:  # not at the end, nor in the L-BFGS phase
             raised = self.balancer.on_check(summary.get("ratios") or {}, self._checks_left())
         if raised:
             record["raised"] = {k: round(v, 4) for k, v in raised.items()}
@@ -466,8 +480,64 @@ class Trainer:
     def active_terms(self, step: int) -> set[str]:
         return {k for k, t in self.terms.items() if t.weight > 0 and step >= t.start}
 
+    def _start_lbfgs(self, sample: Tensor | None = None) -> None:
+        """The L-BFGS phase's optimiser, and the generator state every evaluation restarts from
+        (``sample``: a saved one; None: the current state)."""
+        # up to 20 iterations per step: with one per call, torch's L-BFGS can stall (a least-squares
+        # fit stopped at loss 9e-3 where 20 per call reach 1e-33, tests/test_trainer.py)
+        self.lbfgs = torch.optim.LBFGS(self.model.parameters(), lr=1.0, max_iter=20, history_size=20,
+                                       line_search_fn="strong_wolfe")
+        self._lbfgs_sample = self.gen.get_state() if sample is None else sample
+
+    def lbfgs_step(self) -> dict[str, float] | None:
+        """One L-BFGS step (``training.lbfgs_steps``: up to 20 iterations) on the phase's fixed sample, with the
+        multipliers as they are; returns the loss values at the step's start, or None (and the
+        weights of before) when it met a non-finite value."""
+        if self.lbfgs is None:
+            self._start_lbfgs()
+        step = self.step
+        active = self.active_terms(step)
+        first: dict[str, float] = {}
+        finite = [True]
+
+        def closure() -> Tensor:
+            self.lbfgs.zero_grad(set_to_none=True)
+            self.gen.set_state(self._lbfgs_sample)
+            losses = self.task.loss_terms(self.model, step, active, self.gen)
+            if self.dist is not None:
+                losses = self.dist.globalize(losses)
+            total = self.balancer.combine({k: v for k, v in losses.items() if k in active}, step)
+            if not math.isfinite(float(total.detach())):
+                finite[0] = False
+                return total.detach()
+            total.backward()
+            if self.dist is not None:
+                self.dist.average_gradients(self.model.parameters())
+            if not first:
+                first.update({k: float(v.detach()) for k, v in losses.items()})
+                first["total"] = float(total.detach())
+            return total
+
+        before = [p.detach().clone() for p in self.model.parameters()]
+        self.lbfgs.step(closure)
+        if not finite[0] or not all(bool(torch.isfinite(p).all()) for p in self.model.parameters()):
+            with torch.no_grad():
+                for p, b in zip(self.model.parameters(), before):
+                    p.copy_(b)
+            self._log({"step": step, "event": "skipped_non_finite", "phase": "lbfgs"})
+            self.step += 1
+            return None
+        if self._averaging:
+            self._accumulate_mean()
+        self._track_objective(first, active)
+        self.step += 1
+        return first
+
     def train_step(self) -> dict[str, float] | None:
-        """One optimisation step; returns the loss values, or None if the step was skipped."""
+        """One optimisation step (Adam, or L-BFGS once the Adam iterations are done); returns the
+        loss values, or None if the step was skipped."""
+        if self.step >= self.cfg.training.iterations:
+            return self.lbfgs_step()
         step = self.step
         active = self.active_terms(step)
         self.optimizer.zero_grad(set_to_none=True)
@@ -506,9 +576,10 @@ class Trainer:
         return values
 
     def train(self) -> TrainResult:
-        """Run until ``training.iterations`` (from the current step); handles signals."""
+        """Run until ``training.iterations`` and then ``training.lbfgs_steps`` more (from the
+        current step); handles signals."""
         t = self.cfg.training
-        total_iters = t.iterations
+        total_iters = self.total_iterations
         bar = None
         if self.progress and self.step < total_iters:
             if sys.stderr.isatty():
