@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 import torch
 
+from ginn.geometry import csg
 from ginn.geometry.base import Box
 from ginn.geometry.primitives import AABox, Ball
-from ginn.geometry import csg
 from ginn.topology import betti_numbers
 from ginn.topology.holes import HoleCountLoss, feature_moves
 

@@ -188,8 +188,9 @@ class BalancingConfig(_Strict):
     method: Literal["weighted", "feasibility", "adaptive", "augmented-lagrangian"] = Field(
         "weighted", description="weighted: the sum of weight * term (the paper); feasibility: the weights start the "
         "multipliers, and each feasibility check raises those of a constraint it finds violated and not on track to "
-        "meet its bound by the end of the run (by the square of its worst value over bound, at most 2x); adaptive: constraint terms held at targets derived from the problem's "
-        "tolerances by multipliers adapted from their running violation, the weights only starting them; "
+        "meet its bound by the end of the run (by the square of its worst value over bound, at most 2x); adaptive: "
+        "constraint terms held at targets derived from the problem's tolerances by multipliers adapted from their "
+        "running violation, the weights only starting them; "
         "augmented-lagrangian: constraints driven to zero with multipliers")
     objectives: list[str] = Field(default_factory=lambda: ["eikonal", "mean_curvature", "strain", "diversity", "connectedness"],
                                   description="weighted and augmented-lagrangian: the terms minimised as objectives, the rest are "

@@ -29,8 +29,8 @@ from ..fields import Field
 from ..problems.problem import Problem
 from .metrics import MetricContext, extract_shape, prepare_context, shape_metrics
 
-__all__ = ["FEASIBILITY_METRICS", "BETTI_METRICS", "feasibility_metrics", "judged_volume_outside", "violations", "ratios", "summarize", "verdict_text",
-           "format_feasibility", "short_summary", "check_feasibility", "FeasibilityCheck"]
+__all__ = ["FEASIBILITY_METRICS", "BETTI_METRICS", "feasibility_metrics", "judged_volume_outside", "violations", "ratios",
+           "summarize", "verdict_text", "format_feasibility", "short_summary", "check_feasibility", "FeasibilityCheck"]
 
 #: The metrics the verdict reads.
 FEASIBILITY_METRICS = ("b0_in_design_region", "connected_interfaces_share", "interface_cd1", "volume_outside",
