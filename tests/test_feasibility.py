@@ -148,6 +148,7 @@ def test_topology_targets_enter_the_verdict(obstacle):
     v = violations(m, p)
     assert v == {"topology": {"value": {"holes": 3}, "bound": {"holes": 2}}}
     assert verdict_text(v) == "topology: 3 holes (want 2)"
+    assert verdict_text(violations(dict(m, b1_in_design_region=1), p)) == "topology: 1 hole (want 2)"
     assert ratios(m, p)["topology"] == 2.0 and ratios(dict(m, b1_in_design_region=0), p)["topology"] == 3.0
     assert violations(dict(m, b1_in_design_region=2), p) == {} and ratios(dict(m, b1_in_design_region=2), p)["topology"] == 1.0
     assert "b1_in_design_region" in feasibility_metrics(p) and "b1_in_design_region" not in feasibility_metrics(obstacle)

@@ -166,8 +166,10 @@ def verdict_text(violated: dict[str, dict]) -> str:
                 text += f", {100 * d['interfaces']:.0f} % of the interfaces reached by one piece"
             parts.append(text)
         elif name == "topology":
-            parts.append("topology: " + ", ".join(f"{v if v is not None else 'undefined'} {k} (want {d['bound'][k]})"
-                                                  for k, v in d["value"].items()))
+            singular = {"holes": "hole", "tunnels": "tunnel", "cavities": "cavity"}
+            parts.append("topology: " + ", ".join(
+                f"{v if v is not None else 'undefined'} {singular[k] if v == 1 else k} (want {d['bound'][k]})"
+                for k, v in d["value"].items()))
         else:
             parts.append(f"{name} {_num(d['value'])} > {_num(d['bound'])}")
     return "; ".join(parts)
