@@ -383,8 +383,8 @@ class Trainer:
     def _checks_left(self) -> int:
         """How many checks come after the current step (the last one at the final iteration)."""
         t = self.cfg.training
-        every = max(1, math.ceil(t.iterations / t.feasibility_checks))
-        return math.ceil((t.iterations - self.step) / every)
+        every = max(1, math.ceil(t.iterations / max(1, t.feasibility_checks)))
+        return max(0, math.ceil((t.iterations - self.step) / every))
 
     @property
     def total_iterations(self) -> int:
