@@ -100,20 +100,23 @@ def feature_moves(values: np.ndarray, targets: dict[int, int], margin: float,
         birth, death = rows[:, 1], rows[:, 2]
         bcell = rows[:, 3:3 + d].astype(np.int64)
         dcell = rows[:, 6:6 + d].astype(np.int64)
-        fillable = np.array([movable(c) and (outside_value is None or death[i] < outside_value)
-                             for i, c in enumerate(dcell)], dtype=bool)
+        fillable = np.ones(len(rows), dtype=bool)
+        if outside is not None and len(rows):
+            fillable &= ~outside[tuple(dcell.T)]
+        if outside_value is not None:
+            fillable &= death < outside_value
         alive = (birth <= 0.0) & (death > 0.0)
         counts[k] = int(alive.sum())
         live = np.flatnonzero(alive)
         # the cost of removing each live feature: open (birth up to +m) or fill (death down to -m)
         open_cost = margin - birth[live]
         fill_cost = np.where(fillable[live], death[live] + margin, np.inf)
-        remove = np.minimum(open_cost, fill_cost)
-        order = live[np.argsort(remove, kind="stable")]
+        ranked = np.argsort(np.minimum(open_cost, fill_cost), kind="stable")  # positions in live
         surplus = max(0, len(live) - target)
-        for j, i in enumerate(order):
+        for j, pos in enumerate(ranked):
+            i = live[pos]
             if j < surplus:  # the cheapest to remove
-                fill = fill_cost[np.flatnonzero(live == i)[0]] < open_cost[np.flatnonzero(live == i)[0]]
+                fill = fill_cost[pos] < open_cost[pos]
                 push(dcell[i] if fill else bcell[i], raise_=not fill)
             else:  # kept: hold the margin on both sides
                 if birth[i] > -margin:
