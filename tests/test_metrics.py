@@ -68,6 +68,29 @@ def test_interface_cd1_concentric_circles():
     assert s["interface_cd1"] < 1e-4
 
 
+def test_interface_cd1_is_sub_cell_with_the_field():
+    # A disk of radius 0.3 on a 16-cell grid (h = 0.125): the contour cuts the circle's arcs, so the
+    # contour distance of samples on the circle is ~h^2 / (8 r) ~ 6e-3 on average; Newton
+    # projections along the field's gradient land on the circle itself (also for a field that is
+    # not an SDF, |x|^2 - r^2), and samples at radius 0.45 lie 0.15 from it.
+    from ginn.eval.metrics import interface_cd1, projected_distances
+
+    r = 0.3
+    grid = make_grid(BOX2, 16)
+    t = np.linspace(0.0, 2 * np.pi, 400, endpoint=False)
+    ring = np.stack([np.cos(t), np.sin(t)], axis=1)
+    for f in (as_field(Disk((0.0, 0.0), r).sdf), as_field(lambda x, z=None: (x * x).sum(-1) - r * r)):
+        shape = extract_shape(f, None, grid)
+        coarse = interface_cd1(shape.boundary, r * ring)
+        assert coarse > 1e-3
+        assert interface_cd1(shape.boundary, r * ring, f, None, grid) < 1e-6
+        assert projected_distances(f, None, 0.45 * ring, grid) == pytest.approx(np.full(400, 0.15), abs=1e-6)
+        assert interface_cd1(shape.boundary, 0.45 * ring, f, None, grid) == pytest.approx(0.15, abs=1e-6)
+    # a field without a zero level set: no projection counts, the contour distance stays
+    empty = as_field(lambda x, z=None: (x * x).sum(-1) + 1.0)
+    assert np.isinf(projected_distances(empty, None, r * ring, grid)).all()
+
+
 def test_boundary_overlap_strip_crossing_a_disk_design_region():
     # E = disk of radius R; Omega = the strip |y| <= w: Omega cap dE = two arcs of angle 2 asin(w/R).
     R, w = 0.8, 0.2

@@ -23,8 +23,12 @@ Names (the keys of ``metrics.json``) and estimators:
   on where dE lies between the nodes (exactly for faces normal to an axis, on average otherwise),
   and the samples are uniform by area up to O(h * curvature).
 * ``interface_cd1`` = CD1(dOmega, I) (equation 4): root mean square of the distances from interface
-  samples to the extracted boundary of ``Omega cap X`` (contour / mesh, exact point-to-element
-  distance).
+  samples to the boundary of ``Omega cap X``: per sample the smaller of the exact distance to the
+  extracted contour / mesh and the length of its Newton projection onto ``f = 0``
+  (:func:`projected_distances`). The extracted boundary cuts corners where the surface bends, so
+  alone it overestimates on a coarse grid: the trained bracket (4 shapes) measures 5.4-5.7e-3 on
+  64 cells, 3.8-4.0e-3 on 128 and 3.6-3.8e-3 on 192 from the mesh alone, 3.4-3.7e-3 from the
+  projections alone.
 * ``b0``, ``b0_in_design_region``: face-connected components of the grid nodes of Omega and of
   Omega cap E (scipy.ndimage.label; see :mod:`ginn.extract.grid` for the connectivity convention).
 * ``b1_in_design_region`` (2D: holes; 3D: tunnels), ``b2_in_design_region`` (3D: cavities; None
@@ -367,14 +371,47 @@ def boundary_overlap(
     return float(np.sum(weights * inside) / max(float(np.sum(weights)), 1e-300))
 
 
-def interface_cd1(boundary: Boundary, interface_points: np.ndarray) -> float | None:
-    """Equation 4: ``sqrt(mean_x dist(x, dOmega)^2)`` over interface samples ``x``."""
+def interface_cd1(
+    boundary: Boundary,
+    interface_points: np.ndarray,
+    field: Field | None = None,
+    z: Tensor | None = None,
+    grid: Grid | None = None,
+) -> float | None:
+    """Equation 4: ``sqrt(mean_x dist(x, dOmega)^2)`` over interface samples ``x``.
+
+    With ``field`` (and its ``grid``), each distance is the smaller of the distance to the
+    extracted boundary and :func:`projected_distances` (sub-cell: the extracted boundary cuts
+    corners by up to a cell where the surface bends).
+    """
     if interface_points.shape[0] == 0:
         return None
     if boundary.n_elements == 0:
         return float("inf")
     d = boundary.distance(interface_points)
+    if field is not None and grid is not None:
+        d = np.minimum(d, projected_distances(field, z, interface_points, grid))
     return float(np.sqrt(np.mean(d * d)))
+
+
+def projected_distances(field: Field, z: Tensor | None, x: np.ndarray, grid: Grid, steps: int = 8) -> np.ndarray:
+    """``|x - p(x)|`` with ``p(x)`` the Newton projection of ``x`` onto ``{f = 0}``, ``(q,)``.
+
+    Steps are capped at one grid spacing, a projection counts when it ends inside the grid's box
+    with ``|f| <= 0.01 |grad f| h`` (``h`` the smallest spacing: a residual distance of 1 % of a
+    cell), and ``inf`` marks the points whose projection does not count. The projected point lies
+    on the zero level set, so each finite value bounds the distance to it from above.
+    """
+    dt, dev = field_dtype_device(field, z)
+    xt = torch.as_tensor(x, dtype=dt, device=dev)
+    zz = None if z is None else z.reshape(1, -1).to(dt).expand(xt.shape[0], -1)
+    h = float(np.min(grid.spacing))
+    box = (torch.as_tensor(grid.lo, dtype=dt, device=dev), torch.as_tensor(grid.hi, dtype=dt, device=dev))
+    proj = project_to_zero(field, xt, zz, steps=steps, tol=float("inf"), max_step=h, bounds=box)
+    v = fields.evaluate(field, proj.x, zz, grad=True, create_graph=False)
+    ok = proj.converged & (v.f.abs() <= 0.01 * h * v.grad.norm(dim=-1))
+    d = (proj.x - xt).norm(dim=-1).double()
+    return torch.where(ok, d, torch.full_like(d, float("inf"))).cpu().numpy()
 
 
 def component_volumes(labels: np.ndarray, n: int, weights: np.ndarray) -> np.ndarray:
@@ -584,7 +621,7 @@ def shape_metrics(
         lambda: disconnected_volume(component_volumes(*in_design(), ctx.weights), ctx.vol_design),
     )
     timed("connected_interfaces_share", lambda: connected_interfaces_share(shape, ctx))
-    timed("interface_cd1", lambda: interface_cd1(shape.boundary, ctx.interface_points))
+    timed("interface_cd1", lambda: interface_cd1(shape.boundary, ctx.interface_points, field, z, ctx.grid))
     timed(
         "boundary_overlap",
         lambda: boundary_overlap(shape.values, ctx.grid, ctx.design_boundary_points, weights=ctx.design_boundary_weights),
