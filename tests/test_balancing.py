@@ -118,3 +118,20 @@ def test_checked_multipliers_reach_a_tolerance_of_an_equality_constraint():
         b.on_check({"equality": abs(x[0].item() - 1) / 0.01}, 15 - check)
     assert history == [1.0, 1.0, 2.0, 2.0, 4.0, 4.0, 8.0, 8.0, 16.0, 16.0, 32.0, 32.0, 64.0, 64.0, 128.0, 128.0]
     assert abs(x[0].item() - 1) < 0.01
+
+
+def test_checks_raise_only_what_both_candidates_violate():
+    from ginn.train.trainer import candidate_ratios
+
+    iterate = {"interface": 3.4, "volume_outside": 10.8, "connected": None, "topology": 2.0}
+    mean = {"interface": 0.74, "volume_outside": 9.7, "connected": 1.0, "topology": None}
+    assert candidate_ratios(iterate, mean) == {"interface": 0.74, "volume_outside": 9.7, "connected": 1.0,
+                                               "topology": 2.0}
+    assert candidate_ratios(iterate, None) == iterate
+    # with the scripted rule: only the constraint that the mean violates too is raised
+    m = CheckedMultipliers({"interface": LossTerm(weight=1.0), "design_region": LossTerm(weight=1.0)},
+                           {"interface": ("interface",), "volume_outside": ("design_region",)})
+    m.on_check(candidate_ratios({"interface": 3.0, "volume_outside": 3.0}, None), 5)
+    raised = m.on_check(candidate_ratios({"interface": 3.0, "volume_outside": 3.0},
+                                         {"interface": 0.9, "volume_outside": 3.0}), 4)
+    assert raised == {"volume_outside": 2.0}

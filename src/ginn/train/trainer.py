@@ -48,6 +48,20 @@ class TrainingDiverged(GinnError):
     """Non-finite losses persist even after rolling back with lower learning rates."""
 
 
+def candidate_ratios(iterate: dict[str, float | None], mean: dict[str, float | None] | None) -> dict[str, float | None]:
+    """Each constraint's ratio to its bound in the better of the two candidates a check can keep:
+    the iterate and the mean of the weights since the previous check (``None``: undefined, worse
+    than any number). A constraint that one candidate meets needs no larger multiplier: the run
+    can end with that candidate, and what separates the two is the optimiser's noise."""
+    if not mean:
+        return dict(iterate)
+
+    def better(a, b):
+        return b if a is None else a if b is None else min(a, b)
+
+    return {k: better(v, mean.get(k)) for k, v in iterate.items()}
+
+
 class StopRun(Exception):
     """Raised by a hook to end a run early: the trainer writes a checkpoint and returns with
     ``status`` (e.g. ``"pruned"`` for a sweep trial that the pruner stopped)."""
@@ -404,17 +418,22 @@ class Trainer:
                   "worst": summary["worst"], "violated": _violated_counts(summary)}
         if summary.get("ratios") is not None:
             record["ratios"] = summary["ratios"]
+        interval_mean, n_mean, self._mean, self._mean_count = self._mean, self._mean_count, None, 0
+        averaged = None
+        if self.cfg.training.keep_most_feasible and interval_mean is not None and n_mean > 1:
+            averaged = self._judge(interval_mean)
+            record["mean"] = {"feasible": averaged["feasible"], "worst": averaged["worst"], "iterations": n_mean}
+            if averaged.get("ratios") is not None:
+                record["mean"]["ratios"] = averaged["ratios"]
         raised = {}
         if self.step < self.cfg.training.iterations:  # not at the end, nor in the L-BFGS phase
-            raised = self.balancer.on_check(summary.get("ratios") or {}, self._checks_left())
+            ratios = candidate_ratios(summary.get("ratios") or {}, None if averaged is None else averaged.get("ratios"))
+            raised = self.balancer.on_check(ratios, self._checks_left())
         if raised:
             record["raised"] = {k: round(v, 4) for k, v in raised.items()}
-        interval_mean, n_mean, self._mean, self._mean_count = self._mean, self._mean_count, None, 0
         if self.cfg.training.keep_most_feasible:
             candidates = [(summary, None)]
-            if interval_mean is not None and n_mean > 1:
-                averaged = self._judge(interval_mean)
-                record["mean"] = {"feasible": averaged["feasible"], "worst": averaged["worst"], "iterations": n_mean}
+            if averaged is not None:
                 candidates.append((averaged, interval_mean))
             # the mean wins a tie: it is the centre of what the weights did over the interval
             top, weights = max(reversed(candidates), key=lambda c: c[0]["feasible"])
