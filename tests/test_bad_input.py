@@ -86,6 +86,21 @@ CASES = {
     "two components": (lambda r, t: (t / "h.yaml").write_text(
         "name: a\ngeometry: {dim: 2, domain: {lo: [0, 0], hi: [1, 1]}}\ntopology: {components: 2}\n")
         and ["train", t / "h.yaml"], "spec field 'topology.components': only 1 is supported"),
+    "rotation n < 2": (lambda r, t: (t / "s.yaml").write_text(
+        "name: a\ngeometry: {dim: 2, domain: {lo: [-1, -1], hi: [1, 1]}, interfaces: [{type: circle, center: [0, 0], radius: 0.5}]}\nsymmetry: {rotation: {center: [0, 0], n: 1}}\n")
+        and ["train", t / "s.yaml"], "spec field 'symmetry.rotation.n': must be >= 2"),
+    "rotation n not an integer": (lambda r, t: (t / "s.yaml").write_text(
+        "name: a\ngeometry: {dim: 2, domain: {lo: [-1, -1], hi: [1, 1]}, interfaces: [{type: circle, center: [0, 0], radius: 0.5}]}\nsymmetry: {rotation: {center: [0, 0], n: 2.5}}\n")
+        and ["train", t / "s.yaml"], "spec field 'symmetry.rotation.n'"),
+    "rotation axis of zero length": (lambda r, t: (t / "s.yaml").write_text(
+        "name: a\ngeometry: {dim: 3, domain: {lo: [-1, -1, -1], hi: [1, 1, 1]}, interfaces: [{type: segment, a: [0, 0, -0.5], b: [0, 0, 0.5]}]}\nsymmetry: {rotation: {center: [0, 0, 0], n: 3, axis: [0, 0, 0]}}\n")
+        and ["train", t / "s.yaml"], "spec field 'symmetry.rotation.axis': must be a non-zero vector"),
+    "mirror normal of zero length": (lambda r, t: (t / "s.yaml").write_text(
+        "name: a\ngeometry: {dim: 2, domain: {lo: [-1, -1], hi: [1, 1]}, interfaces: [{type: circle, center: [0, 0], radius: 0.5}]}\nsymmetry: {mirrors: [{point: [0, 0], normal: [0, 0]}]}\n")
+        and ["train", t / "s.yaml"], "spec field 'symmetry.mirrors[0].normal': must be a non-zero vector"),
+    "geometry not symmetric": (lambda r, t: (t / "s.yaml").write_text(
+        "name: a\ngeometry: {dim: 2, domain: {lo: [-1, -1], hi: [1, 1]}, interfaces: [{type: circle, center: [0, 0], radius: 0.5}]}\nsymmetry: {mirrors: [{point: [0.2, 0], normal: [1, 0]}]}\n")
+        and ["train", t / "s.yaml"], "spec field 'symmetry': the interfaces are not symmetric under mirror 0"),
     "export --latent nan": (lambda r, t: ["export", r, "--latent", "nan"], "--latent"),
     "2D export --format stl": (lambda r, t: ["export", r, "--format", "stl"], "--format stl"),
     "--iterations 0": (lambda r, t: ["train", "obstacle", "--iterations", "0"], "--iterations"),

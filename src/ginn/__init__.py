@@ -6,8 +6,10 @@ The public API, re-exported here (everything else is internal and may change):
   :func:`load_run`, :func:`resolve`
 * configuration: :class:`RunConfig`, :func:`build_config`
 * fields and models: :mod:`ginn.fields` (the derivative engine), :class:`Siren`, :class:`Wire`, :class:`ResMLP`,
-  :class:`MLP`, :class:`FourierMLP`, :class:`PeriodicEncoding`, :func:`build_model`
-* geometry: :class:`Box`, :class:`Region`, :class:`Interface`, primitives, CSG, meshes, samplers
+  :class:`MLP`, :class:`FourierMLP`, :class:`PeriodicEncoding`, :func:`build_model`,
+  :class:`SymmetricField` (symmetric by construction)
+* geometry: :class:`Box`, :class:`Region`, :class:`Interface`, primitives, CSG, meshes, samplers,
+  symmetries (:class:`Mirror`, :class:`Rotation`, :class:`Symmetry`)
 * problems: :class:`Problem`, :class:`ProblemSpec`, :func:`load_spec`, :func:`list_problems`
 * training: :class:`Task`, :class:`ShapeTask`, :class:`Trainer`, :func:`make_task`, :data:`TASKS`
 * losses: the constraint losses, :func:`diversity`, :func:`project_to_zero`
@@ -35,12 +37,15 @@ from .geometry import (
     Intersection,
     MeshInterface,
     MeshRegion,
+    Mirror,
     Polygon,
     Polyline,
     Rectangle,
     Region,
+    Rotation,
     Segment,
     Sphere,
+    Symmetry,
     Transformed,
     Union,
     sample_band,
@@ -60,7 +65,7 @@ from .losses import (
     StrainLoss,
     diversity,
 )
-from .models import MLP, FourierMLP, NeuralField, PeriodicEncoding, ResMLP, Siren, Wire, build_model
+from .models import MLP, FourierMLP, NeuralField, PeriodicEncoding, ResMLP, Siren, SymmetricField, Wire, build_model
 from .problems import Problem, ProblemSpec, list_problems, load_spec
 from .runs import Run, evaluate, fit, load_run, resolve
 from .tasks import TASKS, ShapeTask, make_task
@@ -71,11 +76,12 @@ __all__ = [
     "__version__",
     "fit", "evaluate", "load_run", "resolve", "Run",
     "RunConfig", "build_config",
-    "fields", "NeuralField", "Siren", "Wire", "ResMLP", "MLP", "FourierMLP", "PeriodicEncoding", "build_model",
+    "fields", "NeuralField", "Siren", "Wire", "SymmetricField", "ResMLP", "MLP", "FourierMLP", "PeriodicEncoding", "build_model",
     "Box", "Region", "Interface", "AABox", "Rectangle", "Cuboid", "Ball", "Disk", "Sphere", "HalfSpace",
     "Polygon", "Cylinder", "Extrusion", "Union", "Intersection", "Difference", "Transformed",
     "Segment", "Polyline", "Circle", "CylinderWall", "Annulus", "MeshRegion", "MeshInterface",
     "sample_box", "sample_inside", "sample_outside", "sample_interfaces", "sample_band",
+    "Mirror", "Rotation", "Symmetry",
     "Problem", "ProblemSpec", "load_spec", "list_problems",
     "Task", "ShapeTask", "Trainer", "make_task", "TASKS",
     "DesignRegionLoss", "ObstacleLoss", "InterfaceLoss", "NormalLoss", "EikonalLoss", "MeanCurvatureLoss",

@@ -8,7 +8,9 @@ A shape is feasible when every constraint of :class:`~ginn.problems.problem.Tole
   without it, e.g. of older runs, are judged by ``volume_outside``);
 * ``connected`` (when required): ``b0_in_design_region == 1`` and ``connected_interfaces_share == 1``;
 * ``topology`` (when the spec states targets): ``b1_in_design_region`` (holes in 2D, tunnels in
-  3D) and ``b2_in_design_region`` (cavities) equal to them.
+  3D) and ``b2_in_design_region`` (cavities) equal to them;
+* ``symmetry`` (when the spec states a symmetry): ``symmetry_error <= tolerances.symmetry *
+  unit_scale``.
 
 The same function judges the final evaluation (``ginn eval``, at the evaluation resolution) and
 the check during training (:func:`check_feasibility`, on a coarse grid with only these metrics)::
@@ -49,9 +51,10 @@ BETTI_METRICS = {1: "b1_in_design_region", 2: "b2_in_design_region"}
 
 
 def feasibility_metrics(problem: Problem) -> tuple[str, ...]:
-    """The metrics the verdict of ``problem`` reads: :data:`FEASIBILITY_METRICS` and those of its
-    topology targets."""
-    return FEASIBILITY_METRICS + tuple(BETTI_METRICS[k] for k in sorted(problem.topology.targets))
+    """The metrics the verdict of ``problem`` reads: :data:`FEASIBILITY_METRICS`, those of its
+    topology targets and, with a symmetry, ``symmetry_error``."""
+    extra = ("symmetry_error",) if problem.symmetry is not None else ()
+    return FEASIBILITY_METRICS + tuple(BETTI_METRICS[k] for k in sorted(problem.topology.targets)) + extra
 
 
 def _betti_names(dim: int) -> dict[int, str]:
@@ -97,6 +100,9 @@ def violations(metrics: dict, problem: Problem) -> dict[str, dict]:
     off = _topology_off(metrics, problem)
     if off:
         out["topology"] = {"value": {k: v[0] for k, v in off.items()}, "bound": {k: v[1] for k, v in off.items()}}
+    sym = metrics.get("symmetry_error")
+    if problem.symmetry is not None and sym is not None and sym > tol.symmetry * problem.unit_scale:
+        out["symmetry"] = {"value": float(sym), "bound": tol.symmetry * problem.unit_scale}
     return out
 
 
@@ -126,6 +132,9 @@ def ratios(metrics: dict, problem: Problem) -> dict[str, float]:
     if problem.topology.targets:
         off = _topology_off(metrics, problem).values()
         out["topology"] = math.inf if any(g is None for g, _ in off) else 1.0 + sum(abs(g - t) for g, t in off)
+    sym = metrics.get("symmetry_error")
+    if problem.symmetry is not None and sym is not None:
+        out["symmetry"] = float(sym) / (tol.symmetry * problem.unit_scale)
     return out
 
 

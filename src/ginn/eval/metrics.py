@@ -43,6 +43,10 @@ Names (the keys of ``metrics.json``) and estimators:
 * ``surface_strain`` (equation 7): mean over area-uniform samples of the zero level set (projected
   onto ``f = 0`` by Newton steps) of the surface strain ``kappa_1^2 + kappa_2^2`` (2D: ``kappa^2``),
   each clipped at 1000.
+* ``symmetry_error`` (where the problem states a symmetry; not in the paper): for each generator
+  ``T`` of the group (each mirror, the rotation by ``2 pi / n``), the RMS of ``|f(T x)| / |grad
+  f(T x)|`` over zero-level-set samples ``x`` (as for the strain), a first-order distance from the
+  mapped boundary to the boundary; the largest over the generators.
 * ``diversity_mean`` (equation 6 with CD2 of equation 5): from the matrix of two-sided chamfer
   discrepancies between the shapes' boundaries, each side estimated from area-uniform samples of
   one shape to the other's extracted boundary (exact point-to-element distance).
@@ -65,6 +69,7 @@ from ..extract.sampling import field_dtype_device, sample_field
 from ..fields import Field, as_field
 from ..geometry.base import Box, Region
 from ..geometry.mesh import closest_on_segments, closest_on_triangles
+from ..geometry.symmetry import Symmetry
 from ..levelset import project_to_zero
 from ..problems.problem import Problem
 from ..topology.betti import betti_numbers
@@ -84,6 +89,7 @@ __all__ = [
     "disconnected_volume",
     "connected_interfaces_share",
     "surface_strain",
+    "symmetry_error",
     "chamfer_matrix",
     "diversity_from_matrix",
     "diversity_mean",
@@ -103,6 +109,7 @@ METRIC_NAMES = (
     "volume_outside",
     "volume_outside_off_interfaces",
     "surface_strain",
+    "symmetry_error",
 )
 
 
@@ -527,6 +534,45 @@ def surface_strain(
     return float(s.double().mean())
 
 
+def symmetry_error(
+    field: Field,
+    z: Tensor | None,
+    boundary: Boundary,
+    symmetry: Symmetry,
+    domain: Box,
+    *,
+    n_samples: int = 2048,
+    rng: np.random.Generator | None = None,
+    step_cap: float | None = None,
+) -> float | None:
+    """How far the shape is from symmetric: the largest over the generators ``T`` of the group of
+    ``sqrt(mean_x (f(T x) / |grad f(T x)|)^2)``, the first-order distance from the mapped boundary
+    to the boundary, over area-uniform samples ``x`` of the zero level set (the extracted boundary
+    moved onto ``f = 0`` by two Newton steps) whose image ``T x`` lies in the domain. None without
+    such samples."""
+    rng = rng or np.random.default_rng(0)
+    x = boundary.sample(n_samples, rng, level_set_only=True)
+    if x.shape[0] == 0:
+        return None
+    dt, dev = field_dtype_device(field, z)
+    xt = torch.as_tensor(x, dtype=dt, device=dev)
+    zz = None if z is None else z.reshape(1, -1).to(dt).expand(xt.shape[0], -1)
+    proj = project_to_zero(field, xt, zz, steps=2, tol=float("inf"), max_step=step_cap)
+    xp = torch.where(torch.isfinite(proj.x).all(dim=1, keepdim=True), proj.x, xt)
+    lo, hi = domain.tensors(dev, dt)
+    worst = None
+    for _, T in symmetry.generators():
+        y = T(xp)
+        keep = ((y >= lo) & (y <= hi)).all(dim=-1)
+        if not bool(keep.any()):
+            continue
+        v = fields.evaluate(field, y[keep], None if zz is None else zz[keep], grad=True, create_graph=False)
+        d = v.f.double().abs() / v.grad.double().norm(dim=-1).clamp_min(1e-12)
+        e = float(d.pow(2).mean().sqrt())
+        worst = e if worst is None else max(worst, e)
+    return worst
+
+
 # --- sets of shapes -------------------------------------------------------------------------------
 
 
@@ -639,5 +685,11 @@ def shape_metrics(
             rng=np.random.default_rng(seed),
             step_cap=float(ctx.grid.spacing.max()),
         ),
+    )
+    timed(
+        "symmetry_error",
+        lambda: None if ctx.problem.symmetry is None else symmetry_error(
+            field, z, shape.boundary, ctx.problem.symmetry, ctx.problem.domain,
+            n_samples=n_strain_samples, rng=np.random.default_rng(seed), step_cap=float(ctx.grid.spacing.max())),
     )
     return out

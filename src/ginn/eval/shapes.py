@@ -47,6 +47,7 @@ METRIC_LABELS = {
     "volume_outside": "↓ vol(Ω \\ E) / vol(X \\ E)",
     "volume_outside_off_interfaces": "↓ vol(Ω \\ (E ∪ I_h)) / vol(X \\ E)",
     "surface_strain": "↓ E_strain(Ω)",
+    "symmetry_error": "↓ symmetry error",
     "diversity_mean": "↑ δ_mean(S)",
 }
 

@@ -14,6 +14,7 @@ from .sampling import (
     sample_interfaces_with_components,
     sample_outside,
 )
+from .symmetry import Mirror, Rotation, Symmetry
 
 __all__ = [
     "Box", "Region", "Interface",
@@ -23,4 +24,5 @@ __all__ = [
     "MeshRegion", "MeshInterface", "load_mesh",
     "sample_box", "sample_inside", "sample_outside", "sample_interfaces", "sample_interfaces_with_components",
     "sample_band", "interface_corners",
+    "Mirror", "Rotation", "Symmetry",
 ]

@@ -7,6 +7,7 @@ from .frame import DomainFrame
 from .latents import fixed_latents, latent_dim, midpoints, random_latents
 from .mlp import MLP, FourierFeatures, FourierMLP, ResMLP, make_activation
 from .siren import SineLayer, Siren
+from .symmetric import SymmetricField
 from .wire import Wire
 
 __all__ = [
@@ -19,6 +20,7 @@ __all__ = [
     "Siren",
     "SineLayer",
     "Wire",
+    "SymmetricField",
     "MLP",
     "ResMLP",
     "FourierMLP",

@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from ..geometry.base import Box, Interface, Region
+from ..geometry.symmetry import Symmetry
 
 
 @dataclass(frozen=True)
@@ -19,12 +20,15 @@ class Tolerances:
             (``b0(Omega cap E) = 1`` and ``CI / n_I = 1``).
         normal_angle: the angle in degrees by which the shape's normals may deviate from the
             prescribed ones, on average (a training target; not part of the verdict).
+        symmetry: bound of the symmetry error (:func:`ginn.eval.metrics.symmetry_error`) in units
+            of ``unit_scale``, where the problem states a symmetry.
     """
 
     interface: float = 5e-3
     volume_outside: float = 5e-3
     connected: bool = True
     normal_angle: float = 10.0
+    symmetry: float = 5e-3
 
 
 @dataclass(frozen=True)
@@ -61,6 +65,8 @@ class Problem:
         unit_scale: length scale at which metric tolerances such as eps = 0.01 are stated.
         tolerances: when a shape is feasible (:class:`Tolerances`).
         topology: the Betti numbers each shape must have (:class:`Topology`; part of the verdict).
+        symmetry: the symmetry group every shape has (:class:`ginn.geometry.symmetry.Symmetry`;
+            the field is symmetric by construction), or None.
         reference: an independent reference solution evaluation compares against
             (``"minimal-surface"``), or None.
     """
@@ -74,6 +80,7 @@ class Problem:
     unit_scale: float = 1.0
     tolerances: Tolerances = field(default_factory=Tolerances)
     topology: Topology = field(default_factory=Topology)
+    symmetry: Symmetry | None = None
     description: str = ""
     reference: str | None = None
     extra: dict = field(default_factory=dict)

@@ -21,11 +21,13 @@ from ..config import TASK_KINDS, RunConfig, build_config, flattened
 from ..errors import ConfigError, SpecError, field_message, field_path
 from ..geometry import csg
 from ..geometry.base import Box
+from ..geometry.symmetry import Mirror, Rotation, Symmetry
 from .derived import derived_defaults, half_longest_side
 from .interfaces import INTERFACE_TYPES, InterfaceSpec
-from .nodes import Node, NonNegative, Point, Positive, check_lo_hi, spec_dim
+from .nodes import Dir3, Direction, Node, NonNegative, Point, Positive, check_lo_hi, spec_dim
 from .problem import Problem, Tolerances, Topology
 from .regions import REGION_TYPES, RegionSpec
+from .symmetric import check_symmetric
 
 
 class DomainSpec(Node):
@@ -62,6 +64,8 @@ class TolerancesSpec(Node):
     connected: bool = Field(True, description="one piece inside E touching every interface component")
     normal_angle: Annotated[float, Field(gt=0, le=90)] = Field(
         10.0, description="mean deviation of the normals from the prescribed ones, degrees (a training target)")
+    symmetry: Positive = Field(5e-3, description="bound of the RMS distance from the shape's boundary mapped by each "
+                               "symmetry to the boundary, in units of geometry.unit_scale (when a symmetry is stated)")
 
 
 Count = Annotated[int, Field(ge=0, strict=True)]
@@ -100,6 +104,51 @@ class TopologySpec(Node):
         return Topology(b1=self.holes if dim == 2 else self.tunnels, b2=self.cavities if dim == 3 else None)
 
 
+class MirrorSpec(Node):
+    """A mirror plane (2D: line) through ``point`` with normal ``normal``."""
+
+    point: Point
+    normal: Direction
+
+
+class RotationSpec(Node):
+    """An n-fold rotation about ``center`` (3D: about the line through it along ``axis``)."""
+
+    center: Point
+    n: Annotated[int, Field(ge=2, strict=True)]
+    axis: Dir3 | None = None
+
+    @model_validator(mode="after")
+    def _axis(self, info: ValidationInfo):
+        d = spec_dim(info)
+        if d == 3 and self.axis is None:
+            raise ValueError("a 3D rotation needs 'axis'")
+        if d == 2 and self.axis is not None:
+            raise ValueError("'axis' is only used in 3D")
+        return self
+
+
+class SymmetrySpec(Node):
+    """The symmetries every shape has (by construction; :mod:`ginn.geometry.symmetry`)."""
+
+    mirrors: list[MirrorSpec] = Field(default_factory=list)
+    rotation: RotationSpec | None = None
+
+    @model_validator(mode="after")
+    def _group(self):
+        self.build()
+        return self
+
+    def build(self) -> Symmetry | None:
+        if not self.mirrors and self.rotation is None:
+            return None
+        rot = self.rotation
+        return Symmetry(
+            tuple(Mirror(tuple(m.point), tuple(m.normal)) for m in self.mirrors),
+            None if rot is None else Rotation(tuple(rot.center), rot.n, None if rot.axis is None else tuple(rot.axis)),
+        )
+
+
 class ProblemSpec(BaseModel):
     """A validated problem spec. ``defaults`` and ``presets`` are partial RunConfig dicts.
 
@@ -118,6 +167,7 @@ class ProblemSpec(BaseModel):
     geometry: GeometrySpec | None = Field(default=None, validate_default=True)
     tolerances: TolerancesSpec = Field(default_factory=TolerancesSpec)
     topology: TopologySpec = Field(default_factory=TopologySpec)
+    symmetry: SymmetrySpec = Field(default_factory=SymmetrySpec)
     defaults: dict[str, Any] = Field(default_factory=dict)
     presets: dict[str, dict[str, Any]] = Field(default_factory=dict)
     _base_dir: Path | None = PrivateAttr(default=None)
@@ -250,6 +300,10 @@ class ProblemSpec(BaseModel):
                 )
         if design is not None and obstacles:
             design = csg.Difference(design, *obstacles)
+        symmetry = self.symmetry.build()
+        unit_scale = float(g.unit_scale) if g.unit_scale is not None else half_longest_side(domain)
+        if symmetry is not None:
+            check_symmetric(symmetry, domain, design, faces, self.tolerances.interface * unit_scale)
         return Problem(
             name=self.name,
             domain=domain,
@@ -257,10 +311,11 @@ class ProblemSpec(BaseModel):
             interfaces=faces,
             obstacles=obstacles,
             interface_band=float(g.interface_band),
-            unit_scale=float(g.unit_scale) if g.unit_scale is not None else half_longest_side(domain),
+            unit_scale=unit_scale,
             tolerances=Tolerances(**{**self.tolerances.model_dump(),
                                      "connected": self.tolerances.connected or self.topology.components == 1}),
             topology=self.topology.build(dim),
+            symmetry=symmetry,
             description=self.description,
             reference=self.reference,
             extra={"kind": self.kind, "source": self._source},

@@ -31,6 +31,7 @@ from ..losses.diversity import aggregate, distance_matrix, diversity, diversity_
 from ..models.factory import build_model
 from ..models.frame import DomainFrame
 from ..models.latents import fixed_latents, latent_dim, random_latents
+from ..models.symmetric import FOLD_SMOOTHING, SymmetricField
 from ..problems.derived import length_scale
 from ..problems.problem import Problem
 from ..topology import ConnectednessLossBase, make_connectedness_loss
@@ -96,11 +97,19 @@ class ShapeTask(Task):
 
     def build_model(self) -> nn.Module:
         """The field of ``cfg.model``; with ``model.frame: domain`` in the domain's frame
-        (:class:`ginn.models.frame.DomainFrame`)."""
-        model = build_model(self.cfg.model, self.d, latent_dim(self.cfg.latents))
+        (:class:`ginn.models.frame.DomainFrame`); symmetric by construction where the problem
+        states a symmetry (:class:`ginn.models.symmetric.SymmetricField`, folds smoothed over
+        :data:`FOLD_SMOOTHING` of the domain's half longest side)."""
+        sym = self.problem.symmetry
+        model = build_model(self.cfg.model, self.d if sym is None else sym.fold_dim, latent_dim(self.cfg.latents))
+        dom = self.problem.domain
+        center, scale = [0.5 * (a + b) for a, b in zip(dom.lo, dom.hi)], length_scale(self.problem)
         if self.cfg.model.frame == "domain":
-            dom = self.problem.domain
-            model = DomainFrame(model, [0.5 * (a + b) for a, b in zip(dom.lo, dom.hi)], length_scale(self.problem))
+            if sym is not None:
+                model = SymmetricField(model, sym.in_frame(center, scale), FOLD_SMOOTHING)
+            return DomainFrame(model, center, scale)
+        if sym is not None:
+            model = SymmetricField(model, sym, FOLD_SMOOTHING * scale)
         return model
 
     def terms(self) -> dict[str, LossTerm]:
