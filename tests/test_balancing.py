@@ -135,3 +135,15 @@ def test_checks_raise_only_what_both_candidates_violate():
     raised = m.on_check(candidate_ratios({"interface": 3.0, "volume_outside": 3.0},
                                          {"interface": 0.9, "volume_outside": 3.0}), 4)
     assert raised == {"volume_outside": 2.0}
+
+
+def test_a_bounded_objective_falls_while_met_and_others_never_do():
+    terms = {"diversity": LossTerm(weight=1.0), "interface": LossTerm(weight=1.0)}
+    m = CheckedMultipliers(terms, {"diversity": ("diversity",), "interface": ("interface",)}, bounded=("diversity",))
+    m.on_check({"diversity": 0.5, "interface": 0.5}, 9)  # the first check only records
+    assert m.on_check({"diversity": 0.5, "interface": 0.5}, 8) == {"diversity": 0.5}
+    assert m.on_check({"diversity": 0.9, "interface": 0.5}, 7) == {"diversity": pytest.approx(0.81)}
+    assert m.multipliers() == {"diversity": pytest.approx(0.405), "interface": 1.0}
+    # violated and off track: raised like any constraint, from where it fell
+    assert m.on_check({"diversity": 1.5, "interface": 0.5}, 6) == {"diversity": 2.0}
+    assert m.multipliers()["diversity"] == pytest.approx(0.81)

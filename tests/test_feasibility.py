@@ -297,3 +297,32 @@ def test_run_ends_with_the_weights_of_the_most_feasible_check(tmp_path, keep):
     tr2.train()
     assert torch.equal(_flat(tr2.model), t2.seen[2])
     assert tr2.restored is None
+
+
+def test_a_least_diversity_is_a_bound_on_the_set():
+    # two concentric circles r and r + 0.1: each side of the chamfer discrepancy is 0.1, so
+    # CD2 = 0.1 sqrt(2) and for two shapes diversity_mean = CD2
+    from dataclasses import replace
+
+    from ginn.geometry.base import Box
+    from ginn.geometry.interfaces import Circle
+    from ginn.problems.problem import Problem
+
+    P = Problem("t", Box((-1.0, -1.0), (1.0, 1.0)), interfaces=(Circle((0.0, 0.0), 0.35),),
+                tolerances=Tolerances(interface=0.2, connected=False, diversity=0.2))
+    def rings(x, z):
+        return x.norm(dim=-1) - (0.3 + z[..., 0])
+
+    Z = torch.tensor([[0.0], [0.1]], dtype=torch.float64)
+    s = check_feasibility(rings, Z, P, 256)
+    assert s["feasible"] == 2
+    d = s["set_violations"]["diversity"]
+    assert d["bound"] == pytest.approx(0.2) and d["value"] == pytest.approx(0.1 * np.sqrt(2), rel=0.01)
+    assert s["ratios"]["diversity"] == pytest.approx(0.2 / d["value"])
+    assert "the set: diversity 0.14" in format_feasibility(s)
+    met = check_feasibility(rings, Z, replace(P, tolerances=Tolerances(interface=0.2, connected=False, diversity=0.1)), 256)
+    assert met["set_violations"] == {} and met["ratios"]["diversity"] == pytest.approx(0.1 / (0.1 * np.sqrt(2)), rel=0.01)
+    # ginn eval reports the same bound; without a stated least diversity there is none
+    assert evaluate_shapes(rings, Z, P, 256)["feasibility"]["set_violations"]["diversity"]["value"] == pytest.approx(
+        0.1 * np.sqrt(2), rel=0.01)
+    assert "diversity" not in check_feasibility(rings, Z, replace(P, tolerances=Tolerances(interface=0.2, connected=False)), 256)["ratios"]

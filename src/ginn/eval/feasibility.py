@@ -12,6 +12,9 @@ A shape is feasible when every constraint of :class:`~ginn.problems.problem.Tole
 * ``symmetry`` (when the spec states a symmetry): ``symmetry_error <= tolerances.symmetry *
   unit_scale``.
 
+A bound on the set rather than on each shape is reported apart (``set_violations``): with
+``tolerances.diversity``, ``diversity_mean >= tolerances.diversity * unit_scale``.
+
 The same function judges the final evaluation (``ginn eval``, at the evaluation resolution) and
 the check during training (:func:`check_feasibility`, on a coarse grid with only these metrics)::
 
@@ -29,7 +32,7 @@ from torch import Tensor
 
 from ..fields import Field
 from ..problems.problem import Problem
-from .metrics import MetricContext, extract_shape, prepare_context, shape_metrics
+from .metrics import MetricContext, diversity_mean, extract_shape, prepare_context, shape_metrics
 
 __all__ = ["FEASIBILITY_METRICS", "BETTI_METRICS", "feasibility_metrics", "judged_volume_outside", "violations", "ratios",
            "summarize", "verdict_text", "format_feasibility", "short_summary", "check_feasibility", "FeasibilityCheck"]
@@ -138,12 +141,16 @@ def ratios(metrics: dict, problem: Problem) -> dict[str, float]:
     return out
 
 
-def summarize(shapes: list[dict], problem: Problem) -> dict:
+def summarize(shapes: list[dict], problem: Problem, diversity: float | None = None) -> dict:
     """``{"feasible": k, "shapes": S, "violations": [per shape], "worst": {name: value},
-    "ratios": {constraint: value / bound}}`` for the per-shape metric dicts ``shapes``
-    (``worst``: the largest CD1, the largest volume outside E that the verdict bounds
-    (:func:`judged_volume_outside`) as ``volume_outside``, and the most pieces inside E;
-    ``ratios``: the largest of :func:`ratios` over the shapes, ``None`` for ``inf``)."""
+    "ratios": {constraint: value / bound}, "set_violations": {...}}`` for the per-shape metric
+    dicts ``shapes`` and the set's ``diversity`` (``diversity_mean``; None: not measured or
+    fewer than two non-empty shapes). ``worst``: the largest CD1, the largest volume outside E
+    that the verdict bounds (:func:`judged_volume_outside`) as ``volume_outside``, and the most
+    pieces inside E; ``ratios``: the largest of :func:`ratios` over the shapes, ``None`` for
+    ``inf``, and with ``tolerances.diversity`` its bound over the set's diversity as
+    ``diversity``; ``set_violations``: ``{"diversity": {"value", "bound"}}`` when the set is less
+    diverse than that (empty otherwise)."""
     per = [violations(m, problem) for m in shapes]
     worst: dict = {}
     judged = [{**m, "volume_outside": judged_volume_outside(m)} for m in shapes]
@@ -155,8 +162,16 @@ def summarize(shapes: list[dict], problem: Problem) -> dict:
     for r in (ratios(m, problem) for m in shapes):
         for k, v in r.items():
             top[k] = max(top.get(k, 0.0), v)
+    set_violations: dict[str, dict] = {}
+    least = problem.tolerances.diversity
+    if least is not None and len(shapes) > 1:
+        bound = least * problem.unit_scale
+        top["diversity"] = bound / diversity if diversity is not None and diversity > 0 else math.inf
+        if diversity is None or diversity < bound:
+            set_violations["diversity"] = {"value": diversity, "bound": bound}
     return {"feasible": sum(not v for v in per), "shapes": len(shapes), "violations": per, "worst": worst,
-            "ratios": {k: v if math.isfinite(v) else None for k, v in top.items()}}
+            "ratios": {k: v if math.isfinite(v) else None for k, v in top.items()},
+            "set_violations": set_violations}
 
 
 def _num(v: float | None) -> str:
@@ -188,6 +203,8 @@ def format_feasibility(summary: dict) -> str:
     """One line with the count, then one line per infeasible shape naming what it violates."""
     lines = [f"feasible shapes: {summary['feasible']} of {summary['shapes']}"]
     lines += [f"  shape {i}: {verdict_text(v)}" for i, v in enumerate(summary["violations"]) if v]
+    for name, d in (summary.get("set_violations") or {}).items():
+        lines.append(f"  the set: {name} {_num(d['value'])} < {_num(d['bound'])}")
     return "\n".join(lines)
 
 
@@ -215,6 +232,7 @@ class FeasibilityCheck:
         self.problem = problem
         self.metrics = feasibility_metrics(problem)
         self.context: MetricContext = prepare_context(problem, resolution, n_design_boundary_samples=0, seed=seed)
+        self.seed = seed
 
     def __call__(self, field: Field, Z: Tensor | None) -> dict:
         """The summary for the shapes ``{field(., z_i) <= 0}`` (``Z (S, k)`` or None)."""
@@ -223,16 +241,19 @@ class FeasibilityCheck:
             field.eval()
         try:
             codes = [None] if Z is None else [Z[i] for i in range(Z.shape[0])]
-            shapes = [
-                shape_metrics(extract_shape(field, z, self.context.grid), self.context, field, z, only=self.metrics)
-                for z in codes
-            ]
+            shapes, boundaries = [], []
+            for z in codes:
+                sh = extract_shape(field, z, self.context.grid)
+                shapes.append(shape_metrics(sh, self.context, field, z, only=self.metrics))
+                if self.problem.tolerances.diversity is not None and sh.boundary.n_elements > 0:
+                    boundaries.append(sh.boundary)
+            div = diversity_mean(boundaries, seed=self.seed) if len(boundaries) > 1 else None
         finally:
             if was_training:
                 field.train()
         # as in ginn eval: undefined values (the CD1 of an empty shape) are None, JSON has no infinity
         shapes = [{k: v if not isinstance(v, float) or math.isfinite(v) else None for k, v in m.items()} for m in shapes]
-        return summarize(shapes, self.problem)
+        return summarize(shapes, self.problem, div)
 
 
 def check_feasibility(field: Field, Z: Tensor | None, problem: Problem, resolution: int, seed: int = 0) -> dict:

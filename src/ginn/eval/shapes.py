@@ -137,7 +137,7 @@ def evaluate_shapes(
         "shapes": shapes,
         "mean": mean,
         "diversity_mean": div,
-        "feasibility": summarize(shapes, problem),
+        "feasibility": summarize(shapes, problem, div),
     }
 
 

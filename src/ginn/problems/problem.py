@@ -20,6 +20,8 @@ class Tolerances:
             (``b0(Omega cap E) = 1`` and ``CI / n_I = 1``).
         normal_angle: the angle in degrees by which the shape's normals may deviate from the
             prescribed ones, on average (a training target; not part of the verdict).
+        diversity: the least ``diversity_mean`` of the set, in units of ``unit_scale`` (None:
+            the diversity is maximised as an objective, the paper's setting).
         symmetry: bound of the symmetry error (:func:`ginn.eval.metrics.symmetry_error`) in units
             of ``unit_scale``, where the problem states a symmetry.
     """
@@ -29,6 +31,7 @@ class Tolerances:
     connected: bool = True
     normal_angle: float = 10.0
     symmetry: float = 5e-3
+    diversity: float | None = None
 
 
 @dataclass(frozen=True)

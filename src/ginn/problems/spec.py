@@ -64,6 +64,9 @@ class TolerancesSpec(Node):
     connected: bool = Field(True, description="one piece inside E touching every interface component")
     normal_angle: Annotated[float, Field(gt=0, le=90)] = Field(
         10.0, description="mean deviation of the normals from the prescribed ones, degrees (a training target)")
+    diversity: Positive | None = Field(
+        None, description="the least diversity_mean of the set of shapes, in units of geometry.unit_scale: the set "
+        "must be at least this diverse and is not pushed further (none: diversity is maximised)")
     symmetry: Positive = Field(5e-3, description="bound of the RMS distance from the shape's boundary mapped by each "
                                "symmetry to the boundary, in units of geometry.unit_scale (when a symmetry is stated)")
 

@@ -402,9 +402,17 @@ class ShapeTask(Task):
     def constraint_terms(self) -> dict[str, tuple[str, ...]]:
         """The verdict's constraints (:func:`ginn.eval.feasibility.ratios`) and the loss terms
         that enforce them: the interface values, the containment terms (the volume outside E
-        counts the obstacles), the connectedness loss and the hole-count loss."""
-        return {"interface": ("interface",), "volume_outside": ("design_region", "obstacle"),
-                "connected": ("connectedness",), "topology": ("topology",)}
+        counts the obstacles), the connectedness loss, the hole-count loss and, with a stated
+        minimum, the diversity term."""
+        groups = {"interface": ("interface",), "volume_outside": ("design_region", "obstacle"),
+                  "connected": ("connectedness",), "topology": ("topology",)}
+        if self.problem.tolerances.diversity is not None:
+            groups["diversity"] = ("diversity",)
+        return groups
+
+    def bounded_objectives(self) -> tuple[str, ...]:
+        """The diversity, where the spec states a minimum (``tolerances.diversity``)."""
+        return ("diversity",) if self.problem.tolerances.diversity is not None else ()
 
     def feasibility(self, model: nn.Module) -> dict | None:
         """The problem's tolerances checked on a coarse grid (``RESOLUTION['check']``), with the

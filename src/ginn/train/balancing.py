@@ -50,6 +50,12 @@ the bound, ``q_c^2`` lands a factor ``q_c`` inside it. The first check only reco
 Multipliers never fall below the weights, so a problem the weights already solve trains as with
 ``weighted`` while every check finds it on track, and a constraint that stays violated gains
 weight against the others (at most a factor 2 per check).
+
+A *bounded objective* (the diversity, where the spec states ``tolerances.diversity``: the set must
+be at least that diverse, and need not be more) is a constraint of the same kind whose multiplier
+also falls while the bound is met: ``lambda <- lambda * max(q^2, 1/2)`` for ``q < 1``, the mirror
+of the rise, with no floor, so that a set more diverse than asked stops being pushed apart and the
+other terms get the room.
 """
 
 from __future__ import annotations
@@ -234,6 +240,8 @@ class CheckedMultipliers(WeightedSum):
         groups: ``{constraint: (term, ...)}``, the loss terms that enforce each constraint of the
             verdict (:meth:`~ginn.train.task.Task.constraint_terms`); terms in no group keep their
             weights.
+        bounded: the constraints that bound an objective (:meth:`~ginn.train.task.Task.bounded_objectives`):
+            their multipliers also fall while met.
 
     ``GROWTH`` (the largest factor per check) is a class constant: it acts on ratios to the
     tolerance, not on the problem's units.
@@ -241,8 +249,10 @@ class CheckedMultipliers(WeightedSum):
 
     GROWTH = 2.0
 
-    def __init__(self, terms: dict[str, LossTerm], groups: dict[str, tuple[str, ...]], objectives=()):
+    def __init__(self, terms: dict[str, LossTerm], groups: dict[str, tuple[str, ...]], objectives=(),
+                 bounded: tuple[str, ...] = ()):
         super().__init__(terms, objectives)
+        self.bounded = tuple(bounded)
         self.groups = {c: tuple(t for t in ts if t in terms) for c, ts in groups.items()}
         self.groups = {c: ts for c, ts in self.groups.items() if ts}
         self.scale = {c: 1.0 for c in self.groups}  # each constraint's multipliers over their weights
@@ -270,6 +280,10 @@ class CheckedMultipliers(WeightedSum):
                 f = min(q * q, self.GROWTH)
                 self.scale[c] *= f
                 raised[c] = f
+            elif before is not None and q < 1.0 and c in self.bounded:
+                f = max(q * q, 1.0 / self.GROWTH)
+                self.scale[c] *= f
+                raised[c] = f
             self.previous[c] = q
         return raised
 
@@ -285,15 +299,16 @@ class CheckedMultipliers(WeightedSum):
 
 
 def make_balancer(terms: dict[str, LossTerm], cfg: BalancingConfig, targets: dict[str, float] | None = None,
-                  groups: dict[str, tuple[str, ...]] | None = None) -> WeightedSum:
+                  groups: dict[str, tuple[str, ...]] | None = None, bounded: tuple[str, ...] = ()) -> WeightedSum:
     """The balancer of ``cfg.method``; ``targets``: the constraint targets for ``adaptive``;
-    ``groups``: the terms of each checked constraint for ``feasibility``."""
+    ``groups``: the terms of each checked constraint and ``bounded`` those of them that bound an
+    objective, for ``feasibility``."""
     if cfg.method == "weighted":
         return WeightedSum(terms, cfg.objectives)
     if cfg.method == "adaptive":
         return AdaptiveMultipliers(terms, targets or {})
     if cfg.method == "feasibility":
-        return CheckedMultipliers(terms, groups or {}, cfg.objectives)
+        return CheckedMultipliers(terms, groups or {}, cfg.objectives, bounded)
     return AugmentedLagrangian(terms, cfg)
 
 

@@ -86,6 +86,11 @@ class Task(abc.ABC):
         feasibility verdict (``balancing.method: feasibility``); none by default."""
         return {}
 
+    def bounded_objectives(self) -> tuple[str, ...]:
+        """The constraints of :meth:`constraint_terms` that bound an objective from below (a
+        minimum diversity): their multipliers also fall while the bound is met; none by default."""
+        return ()
+
     def feasibility(self, model: nn.Module) -> dict | None:
         """Which shapes meet the problem's tolerances now (a cheap coarse-grid check;
         :func:`ginn.eval.feasibility.summarize`), or None for tasks without tolerances."""

@@ -197,7 +197,8 @@ class Trainer:
         if first > 0:
             raise ConfigError(f"no loss term is active at iteration 0 (the earliest start is {first}); "
                               "set losses.<term>.start = 0 for at least one term")
-        self.balancer = make_balancer(self.terms, cfg.balancing, task.constraint_targets(), task.constraint_terms())
+        self.balancer = make_balancer(self.terms, cfg.balancing, task.constraint_targets(), task.constraint_terms(),
+                                      task.bounded_objectives())
         self.step = 0
         self.bad_steps = 0
         self.rollbacks = 0
@@ -447,6 +448,7 @@ class Trainer:
         mean = total / count if count else None
         before, self._objective_before, self._objective = self._objective_before, mean, [0.0, 0]
         if (self.cfg.training.stop_when_feasible and summary["feasible"] == summary["shapes"]
+                and not summary.get("set_violations")
                 and mean is not None and before is not None
                 and abs(before - mean) <= 0.01 * max(abs(before), abs(mean), 1e-12)):
             raise StopRun("completed", f"every shape feasible and the objectives steady at iteration {self.step}")
