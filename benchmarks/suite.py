@@ -7,9 +7,9 @@
     python benchmarks/suite.py --set training.lr_decay=0.1  # a candidate default, on every problem
 
 The problems are ``benchmarks/suite/*.yaml``, written the way users write specs: geometry, the
-number of shapes and nothing about training, plus the built-in ``obstacle``, ``bracket`` and
-``plateau`` with their geometry and shapes (number and latent range) only: the obstacle and
-bracket as ``ginn train NAME`` trains them, plateau without the paper's settings that its spec
+number of shapes and nothing about training, plus the built-in ``obstacle``, ``bracket``,
+``plateau`` and ``wheel`` with their geometry and shapes (number and latent range) only: the
+obstacle, bracket and wheel as ``ginn train NAME`` trains them, plateau without the paper's settings that its spec
 states, so that every problem trains with the settings ginn derives). Each (problem, seed) is trained into ``--out``,
 evaluated like ``ginn eval`` (the problem's tolerances, ``docs/problem-spec.md``), and printed as
 one row: feasible shapes of all, the worst CD1 (the interface tolerance times ``unit_scale`` in
@@ -36,7 +36,7 @@ from ginn.errors import GinnError
 from ginn.problems import ProblemSpec, load_spec
 
 HERE = Path(__file__).resolve().parent / "suite"
-BUILTIN = ["obstacle", "bracket", "plateau"]
+BUILTIN = ["obstacle", "bracket", "plateau", "wheel"]
 
 
 def problems() -> dict[str, str]:

@@ -3,6 +3,7 @@
 import pytest
 import torch
 
+from ginn import fields
 from ginn.problems import load_spec
 from ginn.tasks import make_task
 
@@ -77,15 +78,43 @@ def test_containment_slope_is_exact_for_sdfs_and_catches_flat_fields():
     out = task.loss_terms(sdf, 0, active, torch.Generator().manual_seed(5))
     assert out["design_region"].item() == 0.0 and out["obstacle"].item() == 0.0
 
-    flat = _FnField(lambda x: 0.0 * x[:, 0] + 1e-3)
+    # (2e-3: above the surface projection's residual tolerance 1e-3, so no point counts as on its
+    # zero level set, which it does not have)
+    flat = _FnField(lambda x: 0.0 * x[:, 0] + 2e-3)
     out = task.loss_terms(flat, 0, active, torch.Generator().manual_seed(5))
     pts = task.sample(1, active, torch.Generator().manual_seed(5))
     xo = pts["outside"][0]
     d_out = _depth_outside_obstacle_region(xo)
-    expected = (1e-3 - d_out).clamp(max=0).pow(2).mean().item()
+    expected = (2e-3 - d_out).clamp(max=0).pow(2).mean().item()
     assert expected > 1e-4 and out["design_region"].item() == pytest.approx(expected, rel=1e-5)
     d_obs = (0.1 - pts["obstacle"][0].norm(dim=-1)).clamp_min(0)  # depth into the disk
-    assert out["obstacle"].item() == pytest.approx((1e-3 - d_obs).clamp(max=0).pow(2).mean().item(), rel=1e-5)
+    assert out["obstacle"].item() == pytest.approx((2e-3 - d_obs).clamp(max=0).pow(2).mean().item(), rel=1e-5)
+
+
+def test_surface_samples_outside_the_design_region_are_penalised_by_their_depth():
+    """A disk of radius 0.3 centred at (0.8, 0) overhangs E = [-0.9, 0.9] x [-0.4, 0.4] by 0.2:
+    besides the uniform samples of X \\ E, the design-region loss (power 1, slope 1) takes the
+    surface samples beyond x = 0.9, each at its depth x - 0.9 (f = 0 there)."""
+    spec = load_spec("obstacle")
+    cfg = spec.config("single", {"losses": {"containment_slope": 1.0, "containment_power": 1}})
+    task = make_task(spec, cfg)
+    c = torch.tensor([0.8, 0.0])
+    disk = _FnField(lambda x: (x - c).norm(dim=-1) - 0.3)
+    gen = torch.Generator().manual_seed(3)
+    out = task.loss_terms(disk, 0, {"design_region"}, gen)
+    pts = task.sample(1, {"design_region"}, torch.Generator().manual_seed(3))
+    xo = pts["outside"][0]
+    fo = disk(xo) - _depth_outside_obstacle_region(xo)
+    # the surface samples: recompute them as the task does
+    v = fields.evaluate(disk, pts["domain"][0], None, grad=True, create_graph=False)
+    xb, mask = task.boundary_points(disk, None, pts["domain"], v.f[None], v.grad[None])
+    xb = xb[0][mask[0]]
+    beyond = xb[xb[:, 0] > 0.9]
+    assert beyond.shape[0] > 5 and ((beyond - c).norm(dim=-1) - 0.3).abs().max() < 1e-5
+    depth = _depth_outside_obstacle_region(beyond)
+    assert torch.allclose(depth, beyond[:, 0] - 0.9, atol=1e-6)
+    penalties = torch.cat([(-fo).clamp_min(0), depth])
+    assert out["design_region"].item() == pytest.approx(penalties.mean().item(), rel=1e-4)
 
 
 def test_away_from_interfaces_measures_the_distance_to_them():

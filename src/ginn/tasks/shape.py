@@ -238,9 +238,7 @@ class ShapeTask(Task):
             ge = part_g["domain"] if "band" not in part_g else torch.cat([part_g["domain"], part_g["band"]], dim=1)
             out["eikonal"] = self.eikonal_loss(ge.reshape(-1, self.d))
         if "design_region" in active and "outside" in part_f:
-            E = self.problem.design_region
-            fo = part_f["outside"].reshape(-1) - self._containment_floor(pts["outside"], E, 1.0)
-            out["design_region"] = self.design_loss(fo)
+            out["design_region"] = part_f["outside"]  # replaced below, with the surface samples outside E
         if "obstacle" in active and "obstacle" in part_f:
             fo = part_f["obstacle"].reshape(-1)
             out["obstacle"] = self.obstacle_loss(fo - self._containment_floor(pts["obstacle"], self.problem.obstacles, -1.0))
@@ -257,9 +255,11 @@ class ShapeTask(Task):
             has = ni.norm(dim=-1) > 0.5
             out["normal"] = self.normal_loss(part_g["interface"].reshape(-1, self.d)[has], ni[has])
         need_boundary = {"mean_curvature", "strain", "diversity"} & active
-        if need_boundary:
+        if need_boundary or "design_region" in out:
             xb, mask = self.boundary_points(model, Z, pts["domain"], part_f["domain"], part_g["domain"])
             out.update(self._boundary_losses(model, Z, xb, mask, active))
+            if "design_region" in out:
+                out["design_region"] = self._containment_with_surface(model, Z, part_f["outside"], pts["outside"], xb, mask)
         if "connectedness" in active:
             margin = self.cfg.connectedness.margin
             field = model if margin == 0 else fields.Shifted(model, margin)
@@ -267,6 +267,28 @@ class ShapeTask(Task):
         if "topology" in active:
             out["topology"] = self.hole_loss()(model, Z)
         return out
+
+    def _containment_with_surface(self, model: nn.Module, Z: Tensor | None, f_out: Tensor, x_out: Tensor,
+                                  xb: Tensor, mask: Tensor) -> Tensor:
+        """The design-region loss over the uniform samples of X \\ E (``x_out (S, n, d)``, values
+        ``f_out (S, n)``) and the samples of the shapes' surfaces that lie outside E (``xb (S, m, d)``,
+        converged where ``mask``), each against its containment floor.
+
+        Where a shape overhangs E by a thin sliver, few uniform samples fall into it and their
+        penalty is as thin as the sliver; every surface sample on the sliver is penalised by its
+        depth outside E, so the push scales with the overhang's area instead of its volume. The
+        surface samples are the ones the boundary losses use (no extra projection)."""
+        E = self.problem.design_region
+        fo = f_out.reshape(-1) - self._containment_floor(x_out, E, 1.0)
+        flat = xb.reshape(-1, self.d)
+        with torch.no_grad():
+            out = mask.reshape(-1) & (E.sdf(flat) > 0)
+        if bool(out.any()):
+            xs = flat[out]
+            zs = None if Z is None else Z[:, None, :].expand(*xb.shape[:2], Z.shape[-1]).reshape(-1, Z.shape[-1])[out]
+            fs = model(xs, zs) - self._containment_floor(xs[None], E, 1.0)
+            fo = torch.cat([fo, fs])
+        return self.design_loss(fo)
 
     def _containment_floor(self, x: Tensor, regions, sign: float) -> Tensor | float:
         """``losses.containment_slope`` times the distance of each sample ``x (S, n, d)`` into the

@@ -34,7 +34,8 @@ Check-driven multipliers (``method: feasibility``): the weights are the starting
 each feasibility check during training (``training.feasibility_checks``) raises the multiplier of
 the terms behind a constraint it finds violated and not on track to be met by the end of the run.
 With ``q_c`` the constraint's value over its bound for the worst shape
-(:func:`ginn.eval.feasibility.ratios`: CD1 / bound, volume outside E / bound, pieces inside E),
+(:func:`ginn.eval.feasibility.ratios`: CD1 / bound, volume outside E / bound, pieces inside E; the
+smaller of the iterate's and the interval mean's, :func:`ginn.train.trainer.candidate_ratios`),
 ``q_c'`` the same at the check before and ``R`` the number of checks still to come::
 
     on track:  q_c (q_c / q_c')^R <= 1     (the last interval's rate, kept up, meets the bound)
