@@ -255,11 +255,17 @@ class ShapeTask(Task):
             has = ni.norm(dim=-1) > 0.5
             out["normal"] = self.normal_loss(part_g["interface"].reshape(-1, self.d)[has], ni[has])
         need_boundary = {"mean_curvature", "strain", "diversity"} & active
-        if need_boundary or "design_region" in out:
+        surface_containment = "design_region" in out and self.cfg.losses.containment_slope > 0
+        if need_boundary or surface_containment:
             xb, mask = self.boundary_points(model, Z, pts["domain"], part_f["domain"], part_g["domain"])
             out.update(self._boundary_losses(model, Z, xb, mask, active))
-            if "design_region" in out:
+        if "design_region" in out:
+            if surface_containment:
                 out["design_region"] = self._containment_with_surface(model, Z, part_f["outside"], pts["outside"], xb, mask)
+            else:
+                E = self.problem.design_region
+                out["design_region"] = self.design_loss(part_f["outside"].reshape(-1)
+                                                        - self._containment_floor(pts["outside"], E, 1.0))
         if "connectedness" in active:
             margin = self.cfg.connectedness.margin
             field = model if margin == 0 else fields.Shifted(model, margin)
@@ -277,7 +283,9 @@ class ShapeTask(Task):
         Where a shape overhangs E by a thin sliver, few uniform samples fall into it and their
         penalty is as thin as the sliver; every surface sample on the sliver is penalised by its
         depth outside E, so the push scales with the overhang's area instead of its volume. The
-        surface samples are the ones the boundary losses use (no extra projection)."""
+        surface samples are the ones the boundary losses use (no extra projection). Used with a
+        containment floor (``losses.containment_slope > 0``): without one a surface sample, where
+        ``f = 0``, carries no penalty."""
         E = self.problem.design_region
         fo = f_out.reshape(-1) - self._containment_floor(x_out, E, 1.0)
         flat = xb.reshape(-1, self.d)
