@@ -127,3 +127,16 @@ def test_away_from_interfaces_measures_the_distance_to_them():
     assert task._away_from_interfaces(pts, 0.1).tolist() == [False, True, False, True, False]
     assert task._away_from_interfaces(pts, 0.0).all()
 
+
+
+def test_without_a_floor_the_design_region_loss_is_the_papers():
+    """``losses.containment_slope = 0`` (the paper's presets): the mean of min(0, f)^2 over the
+    uniform samples of X \\ E alone; surface samples, where f = 0, would only dilute it."""
+    spec = load_spec("obstacle")
+    task = make_task(spec, spec.config("single", {}))  # the paper's settings, one shape
+    c = torch.tensor([0.8, 0.0])
+    disk = _FnField(lambda x: (x - c).norm(dim=-1) - 0.3)
+    out = task.loss_terms(disk, 0, {"design_region"}, torch.Generator().manual_seed(3))
+    xo = task.sample(1, {"design_region"}, torch.Generator().manual_seed(3))["outside"][0]
+    expected = disk(xo).clamp(max=0).pow(2).mean().item()
+    assert expected > 0 and out["design_region"].item() == pytest.approx(expected, rel=1e-6)
