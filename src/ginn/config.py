@@ -131,7 +131,8 @@ class LossesConfig(_Strict):
         0.0,
         ge=0,
         description="penalise f below slope * (distance into X minus E, or into an obstacle) instead of below 0; "
-        "0 is the paper's loss, 1 is exact for a signed distance field of any shape inside E",
+        "0 is the paper's loss, 1 is exact for a signed distance field of any shape inside E; with a slope > 0 "
+        "the shapes' surface samples outside E enter the design-region term too, each at its depth",
     )
 
 
