@@ -16,8 +16,6 @@ from ginn.geometry.base import Box
 from ginn.geometry.symmetry import Mirror, Rotation, Symmetry
 from ginn.models import Siren, SymmetricField
 
-torch.set_default_dtype(torch.float64)
-
 EPS = 0.02
 
 GROUPS = {
@@ -32,8 +30,12 @@ GROUPS = {
 }
 
 
+def _t(v) -> torch.Tensor:
+    return torch.tensor(v, dtype=torch.float64)
+
+
 def _points(dim: int, n: int = 500, seed: int = 0) -> torch.Tensor:
-    return torch.rand(n, dim, generator=torch.Generator().manual_seed(seed)) * 2 - 1
+    return torch.rand(n, dim, generator=torch.Generator().manual_seed(seed), dtype=torch.float64) * 2 - 1
 
 
 @pytest.mark.parametrize("name", list(GROUPS))
@@ -54,20 +56,20 @@ def test_fold_is_a_local_isometry_away_from_mirrors_and_axis(name):
     # every mirror and the axis
     sym = GROUPS[name]
     x = _points(sym.dim, 20000, seed=1)
-    dist = torch.full((x.shape[0],), math.inf)
+    dist = torch.full((x.shape[0],), math.inf, dtype=torch.float64)
+    rot = sym.rotation
     for m in sym.mirrors:
-        normals = [torch.tensor(m.normal)]
-        rot = sym.rotation
-        if rot is not None and abs(float(torch.tensor(m.normal) @ torch.tensor(rot.axis or (0.0, 0.0, 0.0)[:2]))) < 1e-9:
-            # a mirror containing the axis implies n of them, kpi/n apart
+        normals = [_t(m.normal)]
+        contains_axis = rot is not None and (rot.dim == 2 or abs(float(_t(m.normal) @ _t(rot.axis))) < 1e-9)
+        if contains_axis:  # with the rotation, n mirrors k pi / n apart
             half = Rotation(rot.center, 2 * rot.n, rot.axis)
-            normals = [half.matrix(k) @ torch.tensor(m.normal) for k in range(rot.n)]
+            normals = [half.matrix(k) @ _t(m.normal) for k in range(rot.n)]
         for nrm in normals:
-            dist = torch.minimum(dist, ((x - torch.tensor(m.point)) @ nrm).abs())
-    if sym.rotation is not None:
-        q = x - torch.tensor(sym.rotation.center)
+            dist = torch.minimum(dist, ((x - _t(m.point)) @ nrm).abs())
+    if rot is not None:
+        q = x - _t(rot.center)
         if sym.dim == 3:
-            a = torch.tensor(sym.rotation.axis)
+            a = _t(rot.axis)
             q = q - (q @ a)[:, None] * a
         dist = torch.minimum(dist, q.norm(dim=-1))
     keep = dist > 10 * EPS
@@ -75,7 +77,7 @@ def test_fold_is_a_local_isometry_away_from_mirrors_and_axis(name):
     J = torch.func.vmap(torch.func.jacrev(lambda p: sym.fold(p[None], EPS)[0]))(x)  # (n, fold_dim, d)
     G = J.transpose(1, 2) @ J
     order = sym.rotation.n if sym.rotation is not None else 2
-    err = (G - torch.eye(sym.dim)).abs().amax(dim=(1, 2))
+    err = (G - torch.eye(sym.dim, dtype=torch.float64)).abs().amax(dim=(1, 2))
     assert (err <= order * (EPS / dist) ** 2).all()
     assert err.max() > 0  # the bound is not vacuous: the fold does bend
 
@@ -83,7 +85,7 @@ def test_fold_is_a_local_isometry_away_from_mirrors_and_axis(name):
 def test_fold_is_smooth_on_the_axis_and_the_mirror():
     # finite first and second derivatives where the fold creases (the rotation centre, the mirror line)
     sym = GROUPS["dihedral 3"]
-    c = torch.tensor([[0.2, -0.1], [0.2 + 0.3 * math.sin(0.4), -0.1 - 0.3 * math.cos(0.4)]])
+    c = _t([[0.2, -0.1], [0.2 + 0.3 * math.sin(0.4), -0.1 - 0.3 * math.cos(0.4)]])
     for p in c:
         H = torch.func.hessian(lambda q: sym.fold(q[None], EPS)[0].sum())(p)
         assert torch.isfinite(H).all() and H.abs().max() < 10 / EPS
@@ -94,17 +96,17 @@ def test_symmetric_field_is_exactly_symmetric_with_fd_derivatives():
     inner = Siren(3, [32, 32], latent_dim=1, w0_first=10.0)
     f = SymmetricField(inner, sym, EPS).double()
     x = _points(2, 300)
-    z = torch.full((300, 1), 0.05)
+    z = torch.full((300, 1), 0.05, dtype=torch.float64)
     for _, T in sym.generators():
         assert torch.allclose(f(T(x), z), f(x, z), atol=1e-12, rtol=0)
     v = fields.evaluate(f, x, z, grad=True, create_graph=False)
     h = 1e-6
-    fd = torch.stack([(f(x + h * e, z) - f(x - h * e, z)) / (2 * h) for e in torch.eye(2)], dim=-1)
+    fd = torch.stack([(f(x + h * e, z) - f(x - h * e, z)) / (2 * h) for e in torch.eye(2, dtype=torch.float64)], dim=-1)
     assert torch.allclose(v.grad, fd, atol=1e-6)
 
 
 def _disk(c, r):
-    c = torch.tensor(c)
+    c = _t(c)
     return as_field(lambda x, z=None: (x - c.to(x.dtype)).norm(dim=-1) - r)
 
 

@@ -56,7 +56,7 @@ class Mirror:
 
     def reflect(self, x: Tensor) -> Tensor:
         """``(n, d)`` -> ``(n, d)``: the mirror image."""
-        p, m = like(torch.tensor(self.point), x), like(torch.tensor(self.normal), x)
+        p, m = like(_f64(self.point), x), like(_f64(self.normal), x)
         return x - 2.0 * ((x - p) @ m)[:, None] * m
 
 
@@ -96,7 +96,7 @@ class Rotation:
 
     def rotate(self, x: Tensor, k: int = 1) -> Tensor:
         """``(n, d)`` -> ``(n, d)``: rotated by ``2 pi k / n``."""
-        c = like(torch.tensor(self.center), x)
+        c = like(_f64(self.center), x)
         return (x - c) @ like(self.matrix(k), x).T + c
 
 
@@ -187,13 +187,13 @@ class Symmetry:
         if self.rotation is None:
             y = x
             for m in self.mirrors:
-                p, nrm = like(torch.tensor(m.point), x), like(torch.tensor(m.normal), x)
+                p, nrm = like(_f64(m.point), x), like(_f64(m.normal), x)
                 u = (y - p) @ nrm
                 y = y + (_smooth_abs(u, eps) - u)[:, None] * nrm
             return y
         along, across = self._split()
         rot = self.rotation
-        c = like(torch.tensor(rot.center), x)
+        c = like(_f64(rot.center), x)
         if rot.dim == 2:
             e1 = torch.tensor([1.0, 0.0], dtype=torch.float64)
             if along is not None:  # e1 along the mirror line
@@ -228,6 +228,11 @@ class Symmetry:
                 t = _smooth_abs(t - t0, eps) + t0
             cols.append(t)
         return torch.stack(cols, dim=-1)
+
+
+def _f64(v: Sequence[float]) -> Tensor:
+    """A float64 tensor of the floats ``v`` (constants keep their precision in float64 fields)."""
+    return torch.tensor(v, dtype=torch.float64)
 
 
 def _smooth_abs(u: Tensor, eps: float) -> Tensor:
