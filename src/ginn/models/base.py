@@ -152,3 +152,25 @@ class NeuralField(nn.Module):
                 )
             if z.shape[0] != x.shape[0]:
                 raise ValueError(f"x and z must have the same number of rows, got {x.shape[0]} and {z.shape[0]}")
+
+
+class WrappedField(nn.Module):
+    """A field that calls an ``inner`` field on transformed points (a frame, a symmetry fold): it
+    reports the inner field's latent and output sizes, and its point dimension unless it changes
+    it."""
+
+    def __init__(self, inner: nn.Module):
+        super().__init__()
+        self.inner = inner
+
+    @property
+    def in_dim(self) -> int:
+        return self.inner.in_dim
+
+    @property
+    def latent_dim(self) -> int:
+        return self.inner.latent_dim
+
+    @property
+    def out_dim(self) -> int:
+        return self.inner.out_dim

@@ -14,34 +14,23 @@ from collections.abc import Sequence
 import torch
 from torch import Tensor, nn
 
+from .base import WrappedField
+
 __all__ = ["DomainFrame"]
 
 
-class DomainFrame(nn.Module):
+class DomainFrame(WrappedField):
     """``inner`` evaluated in the frame of centre ``center (d,)`` and scale ``scale``.
 
     Shapes: ``x (n, d)``, ``z (n, k)`` or None -> ``(n,)`` (as ``inner``).
     """
 
     def __init__(self, inner: nn.Module, center: Sequence[float], scale: float):
-        super().__init__()
+        super().__init__(inner)
         if not scale > 0:
             raise ValueError(f"scale must be positive, got {scale}")
-        self.inner = inner
         self.register_buffer("center", torch.tensor([float(c) for c in center]))
         self.scale = float(scale)
-
-    @property
-    def in_dim(self) -> int:
-        return self.inner.in_dim
-
-    @property
-    def latent_dim(self) -> int:
-        return self.inner.latent_dim
-
-    @property
-    def out_dim(self) -> int:
-        return self.inner.out_dim
 
     def _local(self, x: Tensor) -> Tensor:
         return (x - self.center.to(x.dtype)) / self.scale

@@ -5,6 +5,7 @@ from __future__ import annotations
 from torch import Tensor, nn
 
 from ..geometry.symmetry import Symmetry
+from .base import WrappedField
 
 __all__ = ["SymmetricField", "FOLD_SMOOTHING"]
 
@@ -15,7 +16,7 @@ __all__ = ["SymmetricField", "FOLD_SMOOTHING"]
 FOLD_SMOOTHING = 0.02
 
 
-class SymmetricField(nn.Module):
+class SymmetricField(WrappedField):
     """``inner`` evaluated at :meth:`Symmetry.fold` of the points: exactly invariant under every
     generator of ``symmetry`` (to rounding), smooth, and a local isometry away from the mirrors and
     the axis.
@@ -29,26 +30,17 @@ class SymmetricField(nn.Module):
     """
 
     def __init__(self, inner: nn.Module, symmetry: Symmetry, eps: float):
-        super().__init__()
+        super().__init__(inner)
         if getattr(inner, "in_dim", symmetry.fold_dim) != symmetry.fold_dim:
             raise ValueError(f"inner field takes {inner.in_dim} coordinates, the fold gives {symmetry.fold_dim}")
         if not eps > 0:
             raise ValueError(f"eps must be positive, got {eps}")
-        self.inner = inner
         self.symmetry = symmetry
         self.eps = float(eps)
 
     @property
     def in_dim(self) -> int:
         return self.symmetry.dim
-
-    @property
-    def latent_dim(self) -> int:
-        return self.inner.latent_dim
-
-    @property
-    def out_dim(self) -> int:
-        return self.inner.out_dim
 
     def forward(self, x: Tensor, z: Tensor | None = None) -> Tensor:
         return self.inner(self.symmetry.fold(x, self.eps), z)
