@@ -69,3 +69,26 @@ def test_agrees_with_cubical_persistent_homology(dim, n, seed):
     expected = tuple(int(np.count_nonzero(alive & (ph[:, 0] == k))) for k in range(dim))
     got = betti_numbers(mask)
     assert got[:dim] == expected and sum(got) > 2  # a shape with some topology
+
+
+def test_mesh_genus_of_extracted_surfaces_matches_the_tunnels():
+    from ginn.extract.boundary import extract_boundary
+    from ginn.extract.export import watertight_mesh
+    from ginn.extract.grid import make_grid
+    from ginn.geometry.base import Box
+    from ginn.topology.betti import mesh_genus
+
+    grid = make_grid(Box((-1.0, -1.0, -1.0), (1.0, 1.0, 1.0)), 48)
+    x, y, z = (grid.points().reshape(*grid.shape, 3)[..., i] for i in range(3))
+    r = np.sqrt(x**2 + y**2 + z**2)
+    torus = np.sqrt((np.hypot(x, y) - 0.55) ** 2 + z**2) - 0.2
+    left = np.sqrt((np.hypot(x + 0.4, y) - 0.3) ** 2 + z**2) - 0.12
+    right = np.sqrt((np.hypot(x - 0.4, y) - 0.3) ** 2 + z**2) - 0.12
+    shell = np.abs(r - 0.6) - 0.2
+    apart = np.minimum(torus, np.sqrt((x - 0.0) ** 2 + y**2 + z**2) - 0.15)  # a torus and a ball in its hole
+    for values, genus in ((r - 0.6, 0), (torus, 1), (np.minimum(left, right), 2), (shell, 0), (apart, 1)):
+        mesh = watertight_mesh(extract_boundary(values, grid, close=True))
+        assert mesh.is_watertight
+        assert mesh_genus(mesh.vertices, mesh.faces) == genus
+        assert mesh_genus(mesh.vertices, mesh.faces) == betti_numbers(values <= 0)[1]
+    assert mesh_genus(np.zeros((0, 3)), np.zeros((0, 3), np.int64)) == 0

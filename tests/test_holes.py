@@ -60,8 +60,56 @@ def test_kept_missing_and_surplus_holes():
     mv = feature_moves(two, {1: 1}, M)
     assert mv.counts == {1: 2} and mv.raise_.tolist() == [True]
     assert feature_moves(two, {1: 2}, M).index.shape == (0, 2)
-    # a disk has no dimension-1 feature at any level: nothing to bring to life
-    assert feature_moves(R - 0.5, {1: 1}, M).index.shape == (0, 2)
+
+def test_a_solid_part_is_seeded_at_the_centres_of_disjoint_inscribed_balls():
+    # a disk has no dimension-1 feature at any level: its hole is opened at its centre, the deepest node
+    mv = feature_moves(R - 0.5, {1: 1}, M)
+    assert mv.counts == {1: 0} and mv.raise_.tolist() == [True] and np.hypot(*_at(mv.index[0])) <= 1e-12
+    # a 1.6 x 0.4 bar (depth 0.2 along its axis): two holes wanted, two seeds at least 0.4 apart on the axis
+    bar = np.maximum(np.abs(X) - 0.8, np.abs(Y) - 0.2)
+    mv = feature_moves(bar, {1: 2}, M)
+    assert mv.raise_.tolist() == [True, True]
+    a, b = _at(mv.index[0]), _at(mv.index[1])
+    assert abs(a[1]) <= 1e-12 and abs(b[1]) <= 1e-12 and abs(a[0] - b[0]) >= 0.4 - 1e-12
+    assert max(abs(a[0]), abs(b[0])) <= 0.6 + 1e-12  # depth 0.2 within 0.6 of the centre
+    # a part thinner than the margin cannot host a hole
+    assert feature_moves(np.maximum(np.abs(X) - 0.8, np.abs(Y) - 0.5 * M), {1: 1}, M).index.shape == (0, 2)
+
+
+def test_seeds_skip_nodes_outside_E_and_tunnels_are_not_seeded():
+    outside = R <= 0.15  # the disk's deepest nodes lie outside E
+    values = R - 0.5
+    top = float(np.abs(values).max()) + 1.0
+    values = np.where(outside, top, values)
+    mv = feature_moves(values, {1: 2}, M, outside, top)
+    assert mv.counts == {1: 1}  # the hole round the part outside E
+    assert len(mv.index) >= 1 and not outside[tuple(mv.index[-1])]
+
+
+def test_raising_the_seeds_gives_the_target_betti_numbers():
+    bar = np.maximum(np.abs(X) - 0.8, np.abs(Y) - 0.2)
+    for target in (1, 2, 3):
+        mv = feature_moves(bar, {1: target}, M)
+        v = bar.copy()
+        v[tuple(mv.index.T)] = M
+        assert list(betti_numbers(v <= 0)[:2]) == [1, target]
+    # 3D: a plate |z| <= 0.2 is pierced along z through its centre (a tunnel), a ball gets a cavity
+    g = np.linspace(-1, 1, 21)
+    h = g[1] - g[0]
+    gx, gy, gz = np.meshgrid(g, g, g, indexing="ij")
+    plate = np.maximum(np.maximum(np.abs(gx), np.abs(gy)) - 0.8, np.abs(gz) - 0.2 + 0.1 * (gx**2 + gy**2))
+    mv = feature_moves(plate, {1: 1}, h)
+    assert mv.raise_.all() and (mv.index[:, :2] == 10).all()
+    assert set(range(8, 13)) <= set(mv.index[:, 2].tolist()) <= set(range(7, 14))
+    v = plate.copy()
+    v[tuple(mv.index.T)] = h
+    assert list(betti_numbers(v <= 0)) == [1, 1, 0]
+    ball = np.sqrt(gx**2 + gy**2 + gz**2) - 0.6
+    mv = feature_moves(ball, {2: 1}, h)
+    assert mv.index.tolist() == [[10, 10, 10]]
+    v = ball.copy()
+    v[10, 10, 10] = h
+    assert list(betti_numbers(v <= 0)) == [1, 0, 1]
 
 
 @pytest.mark.parametrize("seed", [0, 1])

@@ -34,6 +34,9 @@ Names (the keys of ``metrics.json``) and estimators:
 * ``b1_in_design_region`` (2D: holes; 3D: tunnels), ``b2_in_design_region`` (3D: cavities; None
   in 2D): Betti numbers of the nodes of Omega cap E (:func:`ginn.topology.betti.betti_numbers`; a
   region cut out of E that the shape surrounds, such as an obstacle, is a hole). Not in the paper.
+* ``genus`` (3D; None in 2D): the total genus of the mesh ``ginn export`` writes at the
+  evaluation grid (:func:`ginn.extract.export.watertight_mesh`, :func:`ginn.topology.mesh_genus`),
+  the tunnels of the whole shape read off its surface. Not in the paper.
 * ``disconnected_volume``, ``disconnected_volume_in_design_region``: volume of all components but
   the largest, over vol(E).
 * ``connected_interfaces_share`` = CI / n_I: interface component ``c`` touches shape component
@@ -64,6 +67,7 @@ from torch import Tensor
 from .. import fields
 from ..config import STRAIN_CLIP
 from ..extract.boundary import Boundary, extract_boundary
+from ..extract.export import watertight_mesh
 from ..extract.grid import Grid, interpolate, label_components, make_grid
 from ..extract.sampling import field_dtype_device, sample_field
 from ..fields import Field, as_field
@@ -72,7 +76,7 @@ from ..geometry.mesh import closest_on_segments, closest_on_triangles
 from ..geometry.symmetry import Symmetry
 from ..levelset import project_to_zero
 from ..problems.problem import Problem
-from ..topology.betti import betti_numbers
+from ..topology.betti import betti_numbers, mesh_genus
 
 __all__ = [
     "METRIC_NAMES",
@@ -82,6 +86,7 @@ __all__ = [
     "extract_shape",
     "shape_metrics",
     "volume_outside",
+    "surface_genus",
     "near_interfaces",
     "boundary_overlap",
     "interface_cd1",
@@ -101,6 +106,7 @@ METRIC_NAMES = (
     "b0_in_design_region",
     "b1_in_design_region",
     "b2_in_design_region",
+    "genus",
     "disconnected_volume",
     "disconnected_volume_in_design_region",
     "connected_interfaces_share",
@@ -336,6 +342,12 @@ def extract_shape(
         for k, v in (("extract.sample_field", t1 - t0), ("extract.marching", t2 - t1), ("extract.label", t3 - t2)):
             timings[k] = timings.get(k, 0.0) + v
     return ExtractedShape(values, boundary, labels, n)
+
+
+def surface_genus(boundary: Boundary) -> int:
+    """The total genus of the exported (watertight) mesh of a closed 3D boundary."""
+    mesh = watertight_mesh(boundary)
+    return mesh_genus(mesh.vertices, mesh.faces)
 
 
 def volume_outside(inside: np.ndarray, in_design: np.ndarray, weights: np.ndarray, vol_outside_design: float) -> float:
@@ -660,6 +672,7 @@ def shape_metrics(
 
     timed("b1_in_design_region", lambda: int(betti_in_design()[1]))
     timed("b2_in_design_region", lambda: int(betti_in_design()[2]) if inside.ndim == 3 else None)
+    timed("genus", lambda: surface_genus(shape.boundary) if inside.ndim == 3 else None)
     timed("disconnected_volume",
           lambda: disconnected_volume(component_volumes(shape.labels, shape.n_labels, ctx.weights), ctx.vol_design))
     timed(

@@ -39,6 +39,7 @@ METRIC_LABELS = {
     "b0_in_design_region": "↓ b0(Ω ∩ E)",
     "b1_in_design_region": "b1(Ω ∩ E) (holes / tunnels)",
     "b2_in_design_region": "b2(Ω ∩ E) (cavities)",
+    "genus": "genus of the mesh",
     "disconnected_volume": "↓ vol(DC(Ω)) / vol(E)",
     "disconnected_volume_in_design_region": "↓ vol(DC(Ω ∩ E)) / vol(E)",
     "connected_interfaces_share": "↑ CI(Ω, I) / n_I",

@@ -38,6 +38,7 @@ __all__ = [
     "CONTOUR_FORMATS",
     "shape_boundary",
     "export_mesh",
+    "watertight_mesh",
     "export_contours",
     "export_shape",
     "export_shapes",
@@ -65,8 +66,6 @@ def shape_boundary(field: Field, z: Tensor | None, domain: Box, resolution: int,
 def export_mesh(boundary: Boundary, path: str | Path, file_format: str | None = None) -> Path:
     """Write a 3D boundary as a mesh (format from ``file_format`` or the suffix: stl, ply, obj;
     ``.<format>`` is appended when ``path`` does not already end with it)."""
-    import trimesh
-
     path = Path(path)
     fmt = (file_format or path.suffix.lstrip(".")).lower()
     if fmt not in MESH_FORMATS:
@@ -76,13 +75,20 @@ def export_mesh(boundary: Boundary, path: str | Path, file_format: str | None = 
     if path.suffix.lower() != "." + fmt:
         path = path.with_name(path.name + "." + fmt)
     path.parent.mkdir(parents=True, exist_ok=True)
+    watertight_mesh(boundary).export(path, file_type=fmt)
+    return path
+
+
+def watertight_mesh(boundary: Boundary):
+    """The ``trimesh.Trimesh`` that :func:`export_mesh` writes for a closed 3D boundary."""
+    import trimesh
+
     mesh = trimesh.Trimesh(boundary.vertices, boundary.elements, process=False)
     # marching cubes emits zero-area triangles where the surface passes through grid nodes; they
     # leave edges shared by 4 or 6 faces, so drop them to keep the exported mesh watertight
     mesh.update_faces(mesh.nondegenerate_faces())
     mesh.remove_unreferenced_vertices()
-    mesh.export(path, file_type=fmt)
-    return path
+    return mesh
 
 
 def _svg(polylines: list[np.ndarray], domain: Box, width_px: float = 800.0) -> str:

@@ -17,7 +17,7 @@ import torch
 from ..config import ConnectednessConfig
 from ..geometry.base import Box, Region
 from .base import ConnectednessLossBase
-from .betti import betti_numbers, enclosed_components
+from .betti import betti_numbers, enclosed_components, mesh_genus
 from .components import b0, b0_of_mask, component_sizes, count_components, field_on_grid
 from .connectedness import ConnectednessLoss, Penalties, SurfaceNetworkLossOptions, saddle_penalties, shape_components
 from .critical import (
@@ -90,5 +90,6 @@ __all__ = [
     "field_on_grid",
     "b0",
     "betti_numbers",
+    "mesh_genus",
     "enclosed_components",
 ]

@@ -19,13 +19,20 @@ grid: a feature must be wider than the grid to be seen, a gap too):
   exceeds ``2 m`` (room for the margin on both sides), the ``t_k - n_k`` cheapest to bring to
   life: one born above 0 gets ``f`` at its birth cell down to ``-m``, one that died at or below 0
   gets ``f`` at its death cell up to ``+m``;
+* **seeded** (holes in 2D, cavities in 3D, ``k = d - 1``): when the diagram offers fewer such
+  features than are missing (a solid part has none: its field has no interior maximum), the rest
+  are opened at the centres of the largest disjoint balls inscribed in ``{f <= -m}``: the deepest
+  node, then the deepest node whose ball (radius ``-f``) is disjoint from the balls already chosen,
+  and so on; ``f`` there goes up to ``+m`` (cost ``m - f``). Raising one interior node makes a
+  hole of width about ``2 m`` with the most material round it. A tunnel in 3D (``k = 1 < d - 1``)
+  needs a passage through the part, not a point: every node on the line through the centre
+  toward the nearest point outside the shape, both ways until ``f >= m``, goes up to ``+m``
+  (:func:`pierce_cells`; through a plate this is its normal, the shortest way through);
 * **kept**: the other features alive at 0 are held with ``b <= -m`` and ``d >= m``.
 
 Each move is a hinge on the field at a fixed cell centre (``relu(m - f(x))`` to raise,
 ``relu(f(x) + m)`` to lower), so the loss is zero once every shape has its target Betti numbers
-with the margin; the batch loss is the sum of a shape's hinges, averaged over the shapes. A field
-with no feature to bring to life (a disk has no dimension-1 feature at any level) gets no push
-from this loss; training fields have many small features to start from.
+with the margin; the batch loss is the sum of a shape's hinges, averaged over the shapes.
 
 The persistence diagram is recomputed every ``every`` calls; in between the same cells are
 penalised with the field's current values.
@@ -45,7 +52,7 @@ from ..geometry.base import Box, Region
 from .components import field_on_grid
 from .critical import latents_of
 
-__all__ = ["FeatureMoves", "feature_moves", "HoleCountLoss"]
+__all__ = ["FeatureMoves", "feature_moves", "seed_cells", "pierce_cells", "HoleCountLoss"]
 
 
 @dataclass
@@ -69,8 +76,77 @@ def _pairs(values: np.ndarray, maxdim: int) -> np.ndarray:
     return np.asarray(cripser.computePH(np.ascontiguousarray(values, dtype=np.float64), maxdim=maxdim))
 
 
+def seed_cells(values: np.ndarray, count: int, margin: float, spacing: np.ndarray) -> np.ndarray:
+    """Centres of up to ``count`` disjoint largest balls inscribed in ``{f <= -margin}``.
+
+    Greedy: the deepest node (largest ``-f``) first, then the deepest node whose ball of radius
+    ``-f`` does not meet the balls already chosen. ``-f`` is the depth for a distance-like field;
+    nodes outside E (set above every field value) are never chosen.
+
+    Arguments:
+        values: grid values of one shape ``(n_1, ..., n_d)``.
+        count: how many centres at most.
+        margin: ``m``: a node must lie deeper than ``m``.
+        spacing: node spacing per axis ``(d,)``.
+
+    Returns:
+        grid indices ``(q, d)``, ``q <= count``, deepest first.
+    """
+    depth = -values
+    deep = depth > margin
+    cells = np.argwhere(deep)
+    if count <= 0 or len(cells) == 0:
+        return np.zeros((0, values.ndim), np.int64)
+    r = depth[deep]
+    pos = cells * np.asarray(spacing, dtype=np.float64)
+    free = np.ones(len(r), dtype=bool)
+    chosen = []
+    for _ in range(count):
+        if not free.any():
+            break
+        i = int(np.flatnonzero(free)[np.argmax(r[free])])
+        chosen.append(cells[i])
+        free &= np.linalg.norm(pos - pos[i], axis=1) >= r + r[i]
+    return np.stack(chosen).astype(np.int64)
+
+
+def pierce_cells(values: np.ndarray, centre: np.ndarray, margin: float, spacing: np.ndarray) -> np.ndarray:
+    """The nodes of a straight passage through the part at ``centre``: along the line from the
+    centre toward the nearest node outside the shape (``f > 0``), both ways, up to the first node
+    on each side where ``f >= margin`` (or the edge of the grid).
+
+    Arguments:
+        values: grid values of one shape ``(n_1, ..., n_d)``; centre: a grid index ``(d,)``;
+        margin: ``m``; spacing: node spacing per axis ``(d,)``.
+
+    Returns:
+        the distinct grid indices of the passage ``(q, d)`` (empty when no node lies outside).
+    """
+    spacing = np.asarray(spacing, dtype=np.float64)
+    out = np.argwhere(values > 0)
+    if len(out) == 0:
+        return np.zeros((0, values.ndim), np.int64)
+    c = np.asarray(centre, dtype=np.float64) * spacing
+    gap = out * spacing - c
+    n = gap[np.argmin((gap**2).sum(1))]
+    n = n / np.linalg.norm(n)
+    step = 0.5 * spacing.min()
+    reach = float(np.linalg.norm((np.asarray(values.shape) - 1) * spacing))
+    t = np.arange(0.0, reach + step, step)
+    shape = np.asarray(values.shape)
+    sides = []
+    for sign in (1.0, -1.0):
+        cells = np.rint((c + sign * t[:, None] * n) / spacing).astype(np.int64)
+        inside = (cells >= 0).all(1) & (cells < shape).all(1)
+        cells = cells[: int(np.argmin(inside)) if not inside.all() else len(cells)]
+        stop = values[tuple(cells.T)] >= margin
+        sides.append(cells[: int(np.argmax(stop)) if stop.any() else len(cells)])
+    return np.unique(np.concatenate(sides), axis=0)
+
+
 def feature_moves(values: np.ndarray, targets: dict[int, int], margin: float,
-                  outside: np.ndarray | None = None, outside_value: float | None = None) -> FeatureMoves:
+                  outside: np.ndarray | None = None, outside_value: float | None = None,
+                  spacing: np.ndarray | None = None) -> FeatureMoves:
     """The cells and directions of the module docstring for one shape.
 
     Arguments:
@@ -80,8 +156,10 @@ def feature_moves(values: np.ndarray, targets: dict[int, int], margin: float,
         margin: ``m``, in the units of ``values``.
         outside: boolean grid of the nodes outside E (their cells cannot be moved), or None.
         outside_value: the value given to those nodes.
+        spacing: node spacing per axis ``(d,)`` (for the seeds' distances; None: ``m`` on every axis).
     """
     d = values.ndim
+    spacing = np.full(d, margin) if spacing is None else np.asarray(spacing, dtype=np.float64)
     ph = _pairs(values, max(targets)) if targets else np.zeros((0, 9))
     idx: list[np.ndarray] = []
     up: list[bool] = []
@@ -132,6 +210,10 @@ def feature_moves(values: np.ndarray, targets: dict[int, int], margin: float,
             for i, late, c in sorted(zip(cand, born_late, cost), key=lambda t: t[2])[:missing]:
                 if np.isfinite(c):
                     push(bcell[i] if late else dcell[i], raise_=not late)
+                    missing -= 1
+            for cell in seed_cells(values, missing, margin, spacing):
+                for c in ([cell] if k == d - 1 else pierce_cells(values, cell, margin, spacing)):
+                    push(c, raise_=True)
     index = np.stack(idx).astype(np.int64) if idx else np.zeros((0, d), np.int64)
     return FeatureMoves(index, np.asarray(up, dtype=bool), counts)
 
@@ -160,7 +242,8 @@ class HoleCountLoss:
         grid = node_grid(domain, self.resolution)
         pts = grid.tensor_points(self.device, dtype)
         self._grid = pts.reshape(*grid.shape, -1)
-        self.margin = float(max((h - lo) / (n - 1) for lo, h, n in zip(domain.lo, domain.hi, grid.shape)))
+        self._spacing = np.array([(h - lo) / (n - 1) for lo, h, n in zip(domain.lo, domain.hi, grid.shape)])
+        self.margin = float(self._spacing.max())
         self._outside = None
         if design_region is not None:
             self._outside = ~design_region.contains(pts).reshape(grid.shape).cpu().numpy().astype(bool)
@@ -188,7 +271,7 @@ class HoleCountLoss:
             vals[:, self._outside] = top
         xs, ss, signs, counts = [], [], [], []
         for s in range(S):
-            mv = feature_moves(vals[s], self.targets, self.margin, self._outside, top)
+            mv = feature_moves(vals[s], self.targets, self.margin, self._outside, top, self._spacing)
             counts.append(mv.counts)
             if len(mv.index):
                 xs.append(self._grid[tuple(torch.from_numpy(mv.index).T)])
