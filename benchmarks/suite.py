@@ -5,6 +5,7 @@
     python benchmarks/suite.py --only wheel-2d bridge-2d --out runs/suite
     python benchmarks/suite.py --iterations 200          # a quick look (not the benchmark)
     python benchmarks/suite.py --set training.lr_decay=0.1  # a candidate default, on every problem
+    python benchmarks/suite.py --only obstacle --topology holes=2   # a topology target on every problem
 
 The problems are ``benchmarks/suite/*.yaml``, written the way users write specs: geometry, the
 number of shapes and nothing about training, plus the built-in ``obstacle``, ``bracket``,
@@ -19,6 +20,11 @@ of training and evaluation. The last line is the share of (problem, seed) pairs 
 A JSON copy of the table goes to ``OUT/suite.json``, row by row (a row of the same problem
 and seed replaces the earlier one, so several suite processes can share ``--out``). SIGINT or
 SIGTERM stops the suite after checkpointing the run in progress.
+
+``--topology KEY=N`` (``holes``, ``tunnels``, ``cavities``; repeatable) adds a target to every
+problem's ``topology`` (``docs/problem-spec.md``): the row's problem is then named with it (``obstacle
+holes=2``, run directory ``obstacle-holes2-s0``), a shape is feasible only with that count, and a
+line under the row counts the shapes per number of holes (2D) or per genus of the exported mesh (3D).
 """
 
 from __future__ import annotations
@@ -30,10 +36,13 @@ import sys
 import time
 from pathlib import Path
 
+from pydantic import ValidationError
+
 from ginn import runs
 from ginn.config import deep_merge, parse_set
-from ginn.errors import GinnError
+from ginn.errors import GinnError, SpecError
 from ginn.problems import ProblemSpec, load_spec
+from ginn.problems.spec import TopologySpec
 
 HERE = Path(__file__).resolve().parent / "suite"
 BUILTIN = ["obstacle", "bracket", "plateau", "wheel"]
@@ -52,8 +61,26 @@ def as_user_spec(spec: ProblemSpec) -> ProblemSpec:
     return spec.model_copy(update={"defaults": {"latents": dict(spec.defaults.get("latents", {}))}, "presets": {}})
 
 
+def with_topology(spec: ProblemSpec, targets: dict[str, int]) -> ProblemSpec:
+    """``spec`` with ``targets`` added to its topology and to its name (``obstacle holes=2``).
+
+    Raises:
+        SpecError: a target the problem's dimension does not have, or a bad count.
+    """
+    if not targets:
+        return spec
+    try:
+        topo = TopologySpec.model_validate({**spec.topology.model_dump(exclude_none=True), **targets},
+                                           context={"dim": spec.geometry.dim})
+    except ValidationError as e:
+        err = e.errors()[0]
+        raise SpecError(f"--topology {'.'.join(map(str, err['loc']))}: {err['msg']} ({spec.name})") from None
+    label = " ".join(f"{k}={v}" for k, v in sorted(targets.items()))
+    return spec.model_copy(update={"topology": topo, "name": f"{spec.name} {label}"})
+
+
 def run_one(problem: str, seed: int, out: Path, iterations: int | None, threads: int, resolution: int | None,
-            sets: dict | None = None) -> dict | None:
+            sets: dict | None = None, topology: dict[str, int] | None = None) -> dict | None:
     """Train and evaluate one (problem, seed); the row of the table as a dict (None: the training
     was interrupted)."""
     over: dict = {"seed": seed, "training": {"threads": threads}}
@@ -61,7 +88,7 @@ def run_one(problem: str, seed: int, out: Path, iterations: int | None, threads:
         over["training"]["iterations"] = iterations
     if sets:
         over = deep_merge(over, sets)
-    spec = as_user_spec(load_spec(problem))
+    spec = with_topology(as_user_spec(load_spec(problem)), topology or {})
     head = {"problem": str(Path(problem).resolve()) if problem.endswith(".yaml") else spec.name}
     cfg = spec.config(None, head, over)
     t0 = time.perf_counter()
@@ -79,7 +106,17 @@ def run_one(problem: str, seed: int, out: Path, iterations: int | None, threads:
             "worst_vol_out": max((m["volume_outside"] for m in metrics["shapes"] if m.get("volume_outside") is not None),
                                  default=None),
             "diversity_mean": metrics.get("diversity_mean"),
-            "minutes": wall / 60.0, "iterations": outcome.step}
+            "minutes": wall / 60.0, "iterations": outcome.step,
+            "holes": [m.get("b1_in_design_region") for m in metrics["shapes"]],
+            "genus": [m.get("genus") for m in metrics["shapes"]]}
+
+
+def topology_line(r: dict) -> str:
+    """Shapes per number of holes (2D) or per genus of the exported mesh (3D): ``  holes per shape: 2: 10, 1: 6``."""
+    key, what = ("genus", "genus") if r.get("dim") == 3 else ("holes", "holes")
+    values = [v for v in r.get(key, []) if v is not None]
+    counts = {v: values.count(v) for v in sorted(set(values), reverse=True)}
+    return f"  {what} per shape: " + ", ".join(f"{v}: {n}" for v, n in counts.items())
 
 
 def _f(v, fmt: str = ".2e") -> str:
@@ -102,6 +139,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--resolution", type=int, help="evaluation grid (default: that of ginn eval)")
     p.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=VALUE",
                    help="a setting applied to every problem (to measure a candidate default; not the benchmark)")
+    p.add_argument("--topology", action="append", default=[], metavar="KEY=N",
+                   help="a topology target added to every problem: holes=N (2D), tunnels=N, cavities=N (3D)")
     args = p.parse_args(argv)
     suite = problems()
     names = args.only or list(suite)
@@ -114,19 +153,34 @@ def main(argv: list[str] | None = None) -> int:
     except GinnError as e:
         print(e, file=sys.stderr)
         return 2
+    topology = {}
+    for item in args.topology:
+        key, eq, value = item.partition("=")
+        if key not in ("holes", "tunnels", "cavities") or not eq or not value.isdigit():
+            print(f"--topology: {item!r} is not holes=N, tunnels=N or cavities=N (N a whole number)", file=sys.stderr)
+            return 2
+        topology[key] = int(value)
+    tag = "".join(f"-{k}{v}" for k, v in sorted(topology.items()))
     out = Path(args.out)
     print("| problem | seed | feasible | worst CD1 (bound) | worst vol outside E | worst vol_out | diversity | minutes |")
     print("|---|---|---|---|---|---|---|---|")
     rows = []
     for name in names:
         for seed in args.seeds:
-            r = run_one(suite[name], seed, out / f"{name}-s{seed}", args.iterations, args.threads, args.resolution, sets)
+            run_dir = out / f"{name}{tag}-s{seed}"
+            try:
+                r = run_one(suite[name], seed, run_dir, args.iterations, args.threads, args.resolution, sets, topology)
+            except GinnError as e:
+                print(f"{name}: {e}", file=sys.stderr)
+                return 2
             if r is None:
-                print(f"stopped: {name} seed {seed} was interrupted (`ginn resume {out / f'{name}-s{seed}'}` continues it); "
+                print(f"stopped: {name} seed {seed} was interrupted (`ginn resume {run_dir}` continues it); "
                       f"the finished rows are in {out / 'suite.json'}", file=sys.stderr)
                 return 130
             rows.append(r)
             print(format_row(r), flush=True)
+            if topology:
+                print(topology_line(r), flush=True)
             record(out / "suite.json", r)
     ok = sum(r["feasible"] == r["shapes"] for r in rows)
     print(f"every shape feasible in {ok} of {len(rows)} (problem, seed) pairs ({100 * ok / max(len(rows), 1):.0f} %)")

@@ -70,3 +70,19 @@ def test_an_interrupted_run_stops_the_suite(suite, tmp_path, monkeypatch, capsys
     assert suite.main(["--only", "hook-2d", "plate-2d", "--out", str(tmp_path)]) == 130
     assert calls == ["hook-2d"] and "interrupted" in capsys.readouterr().err
     assert not (tmp_path / "suite.json").exists()
+
+
+def test_a_topology_target_joins_the_spec_and_the_name(suite, capsys):
+    from ginn.errors import SpecError
+    from ginn.problems import load_spec
+
+    spec = suite.with_topology(suite.as_user_spec(load_spec("obstacle")), {"holes": 2})
+    assert spec.name == "obstacle holes=2" and spec.build().topology.targets == {1: 2}
+    shelf = load_spec(str(ROOT / "benchmarks" / "suite" / "shelf-3d.yaml"))
+    assert suite.with_topology(shelf, {"tunnels": 1, "cavities": 0}).build().topology.targets == {1: 1, 2: 0}
+    with pytest.raises(SpecError, match="holes"):
+        suite.with_topology(shelf, {"holes": 1})
+    assert suite.topology_line({"dim": 2, "holes": [2, 1, 2, 2, None]}) == "  holes per shape: 2: 3, 1: 1"
+    assert suite.topology_line({"dim": 3, "genus": [1, 1, 0]}) == "  genus per shape: 1: 2, 0: 1"
+    assert suite.main(["--only", "hook-2d", "--topology", "holes=-1"]) == 2
+    assert "--topology" in capsys.readouterr().err
