@@ -170,6 +170,45 @@ def test_diversity_gradient_pushes_circles_apart():
     assert z.grad[0, 0] > 0 and z.grad[1, 0] < 0
 
 
+@pytest.mark.parametrize("S, masked, prefix", [(2, False, None), (3, True, None), (16, False, None), (16, True, 1),
+                                                (16, True, 40), (9, False, 7)])
+def test_nearest_neighbours_by_bounds_are_those_of_the_full_matrix(S, masked, prefix):
+    """Branch and bound over partial sums finds each shape's nearest shape exactly (float64), and
+    with shapes spread over the latent range it evaluates the field at fewer points than the full
+    S x S x m computation."""
+    from ginn.losses.diversity import distance_matrix, nearest_neighbours
+    from ginn.models import Siren
+
+    torch.manual_seed(S)
+    net = Siren(2, [32, 32], latent_dim=1, w0_first=3.0).double()
+    calls = []
+
+    def f(x, z):
+        calls.append(len(x))
+        return net(x, z)
+
+    m = 40
+    xb = torch.rand(S, m, 2, dtype=torch.float64) * 2 - 1
+    Z = torch.linspace(-1, 1, S, dtype=torch.float64)[:, None]
+    mask = (torch.rand(S, m) > 0.25) if masked else None
+    D = distance_matrix(cross_values(net, xb, Z), mask).masked_fill(torch.eye(S, dtype=torch.bool), float("inf"))
+    near = nearest_neighbours(f, xb, Z, mask, prefix)
+    assert torch.equal(near, D.argmin(dim=1))
+    if S == 16 and prefix is None:  # circles of radius 0.3 centred at (z, 0), sampled on their boundaries
+        calls.clear()
+
+        def circles(x, z):
+            calls.append(len(x))
+            return torch.linalg.norm(x - torch.cat([z, torch.zeros_like(z)], dim=1), dim=1) - 0.3
+
+        t = torch.rand(S, m, dtype=torch.float64) * 2 * math.pi
+        xb = torch.stack([Z + 0.3 * torch.cos(t), 0.3 * torch.sin(t)], dim=-1)
+        D = distance_matrix(cross_values(circles, xb, Z), mask).masked_fill(torch.eye(S, dtype=torch.bool), float("inf"))
+        calls.clear()
+        assert torch.equal(nearest_neighbours(circles, xb, Z, mask), D.argmin(dim=1))
+        assert sum(calls) < 0.5 * S * S * m
+
+
 @pytest.mark.parametrize("eps, masked", [(0.0, False), (0.0, True), (0.01, True)])
 def test_nearest_pair_diversity_equals_the_full_computation(eps, masked):
     """The minimal aggregation evaluated with a graph only through the nearest pairs has the same

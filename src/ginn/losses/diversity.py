@@ -22,10 +22,17 @@ with ``p = 1/2``) and total ``(sum_i (sum_j d_ij)^p)^(1/p)``. The loss is ``-del
 
 Cost. The distance matrix needs every shape's field at every shape's boundary points: ``S^2 m``
 evaluations. With the minimal aggregation only each shape's nearest neighbour carries gradient,
-so :func:`diversity_nearest` computes the full matrix without a graph, picks the nearest pairs,
-and evaluates only those (at most ``2 S m`` points) with one: the same value and gradient as
-:func:`diversity` (tested in float64), at a cost that grows like ``S m`` for the part that
-backpropagates.
+so :func:`diversity_nearest` finds the nearest pairs without a graph and evaluates only those (at
+most ``2 S m`` points) with one: the same value and gradient as :func:`diversity` (tested in
+float64), at a cost that grows like ``S m`` for the part that backpropagates.
+
+The nearest pairs are found exactly without the whole matrix (:func:`nearest_neighbours`, branch
+and bound): every sum of squares over a shape's boundary samples is at least its sum over the
+first quarter of them, so the first quarter gives every pair a lower bound of ``d_ij^2``; the pair
+with the lowest bound in each row is completed to its exact distance, and only the pairs whose
+bound lies below that distance can be nearer, so only those are completed. Shapes spread over a
+latent range have few close neighbours: about ``S^2 m / 4 + c S m`` evaluations for ``c`` such
+neighbours instead of ``S^2 m``.
 """
 
 from __future__ import annotations
@@ -117,6 +124,60 @@ def _mean_sq(V: Tensor, w: Tensor | None) -> Tensor:
     return (sq * w).sum(-1) / w.sum(-1).clamp_min(1.0)
 
 
+def nearest_neighbours(field: Field, xb: Tensor, Z: Tensor, mask: Tensor | None = None,
+                       prefix: int | None = None) -> Tensor:
+    """Each shape's nearest other shape under the distance of equation 12, exactly, without a graph
+    (module docstring: lower bounds from the first ``prefix`` samples, then exact distances for the
+    pairs that can still be nearest).
+
+    Arguments:
+        field: ``(x, z) -> (n,)``.
+        xb: boundary points ``(S, m, d)``, ``S >= 2``; Z: latent codes ``(S, k)``.
+        mask: valid boundary samples ``(S, m)`` or None.
+        prefix: samples per shape for the bounds (None: a quarter of ``m``, at least 1).
+
+    Returns:
+        ``(S,)`` indices: the argmin over ``j != i`` of ``d_ij``.
+    """
+    S, m, d = xb.shape
+    k = Z.shape[-1]
+    m1 = max(1, m // 4) if prefix is None else min(max(1, int(prefix)), m)
+    with torch.no_grad():
+        w = torch.ones(S, m, dtype=xb.dtype, device=xb.device) if mask is None else mask.to(xb.dtype)
+        n = w.sum(-1).clamp_min(1.0)  # (S,) the mean's denominator over all samples
+        V1 = cross_values(field, xb[:, :m1].contiguous(), Z)  # (S, S, m1)
+        part = (V1 * V1 * w[:, None, :m1]).sum(-1) / n[:, None]  # A_ij over the first samples
+        eye = torch.eye(S, dtype=torch.bool, device=xb.device)
+        bound = (part + part.T).masked_fill(eye, float("inf"))  # <= d_ij^2 (before eps)
+        if m1 == m:
+            return bound.argmin(dim=1)
+        exact = torch.full_like(bound, float("inf"))
+
+        def complete(rows: Tensor, cols: Tensor) -> None:
+            """exact d^2 for the pairs (rows, cols) and (cols, rows) into ``exact``."""
+            key = torch.unique(torch.cat([rows * S + cols, cols * S + rows]))
+            r, c = key // S, key % S
+            X = xb[r, m1:].reshape(-1, d)
+            ZZ = Z[c][:, None, :].expand(len(key), m - m1, k).reshape(-1, k)
+            V = field(X, ZZ).reshape(len(key), m - m1)
+            A = torch.zeros(S, S, dtype=part.dtype, device=part.device)
+            A[r, c] = part[r, c] + (V * V * w[r, m1:]).sum(-1) / n[r]
+            done = torch.zeros(S, S, dtype=torch.bool, device=part.device)
+            done[r, c] = True
+            both = done & done.T
+            exact[both] = (A + A.T)[both]
+
+        i = torch.arange(S, device=xb.device)
+        first = bound.argmin(dim=1)
+        complete(i, first)
+        best = exact[i, first]  # (S,) an upper bound of each row's nearest d^2
+        open_ = (bound <= best[:, None]) & ~torch.isfinite(exact)
+        if open_.any():
+            r, c = open_.nonzero(as_tuple=True)
+            complete(r, c)
+        return exact.argmin(dim=1)
+
+
 def diversity_nearest(
     field: Field, xb: Tensor, Z: Tensor, mask: Tensor | None = None, p: float = 0.5, eps: float = 0.0
 ) -> Tensor:
@@ -135,10 +196,7 @@ def diversity_nearest(
     S = xb.shape[0]
     if S < 2:
         return xb.new_zeros(())
-    with torch.no_grad():
-        D = distance_matrix(cross_values(field, xb, Z), mask, eps)
-        eye = torch.eye(S, dtype=torch.bool, device=D.device)
-        near = D.masked_fill(eye, float("inf")).argmin(dim=1)  # (S,)
+    near = nearest_neighbours(field, xb, Z, mask)  # (S,)
     i = torch.arange(S, device=near.device)
     # ordered pairs (row shape r, field of shape c): A[i, n(i)] and A[n(i), i] for every i
     key = torch.cat([i * S + near, near * S + i])
