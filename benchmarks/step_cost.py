@@ -7,6 +7,7 @@
     python benchmarks/step_cost.py --presets bracket:cpu --from-iteration 1200 --compare direct-membership
     python benchmarks/step_cost.py --presets bracket:cpu --checkpoint RUN/checkpoints/last.pt --compare direct-membership
     python benchmarks/step_cost.py --presets bracket:gpu --device cuda --steps 2 --blocks 2
+    python benchmarks/step_cost.py --suite                          # the problem suite, derived settings
 
 For each configuration it prints seconds per iteration (the median over ``--blocks`` blocks of
 ``--steps`` iterations; configurations take turns block by block, so a drift of the machine's
@@ -36,6 +37,7 @@ import sys
 import time
 from collections import defaultdict
 from contextlib import contextmanager
+from pathlib import Path
 
 import torch
 
@@ -48,6 +50,7 @@ from ginn.train.trainer import Trainer
 shape_module = importlib.import_module("ginn.tasks.shape")
 diversity_module = importlib.import_module("ginn.losses.diversity")
 
+SUITE = sorted(str(p) for p in (Path(__file__).resolve().parent / "suite").glob("*.yaml")) + ["obstacle", "bracket", "wheel"]
 PRESETS = ["obstacle:demo", "obstacle:quick", "bracket:cpu", "bracket:cpu-gen", "plateau:cpu", "mirror:", "gray-scott:quick"]
 PARTS = ["sampling", "main pass", "projection", "curvature/strain", "diversity", "connectedness", "backward+step"]
 
@@ -188,6 +191,12 @@ def peak_memory(args, preset: str, shapes: int | None, full: bool) -> float:
     return float(r.stdout.strip().splitlines()[-1])
 
 
+def label(preset: str) -> str:
+    """``problem:preset`` with a spec file's path shortened to its name (``wheel-2d:``)."""
+    problem, _, name = preset.partition(":")
+    return f"{Path(problem).stem if problem.endswith('.yaml') else problem}:{name}"
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--presets", nargs="+", default=PRESETS, help="problem:preset (mirror: for the defaults)")
@@ -203,7 +212,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--from-iteration", type=int, default=0,
                    help="time the iterations from this one on (the loss terms active there; the field is untrained)")
     p.add_argument("--checkpoint", help="start from this checkpoint of a run of the (one) preset: a trained field")
+    p.add_argument("--suite", action="store_true",
+                   help="time the problems of benchmarks/suite.py (its YAML files and the built-in obstacle, bracket and "
+                        "wheel) with the settings ginn derives, instead of --presets")
     args = p.parse_args(argv)
+    if args.suite:
+        args.presets = [f"{problem}:" for problem in SUITE]
     torch.set_num_threads(args.threads)
 
     configs = []
@@ -217,7 +231,8 @@ def main(argv: list[str] | None = None) -> int:
     for c in configs:
         tr, ck = build(c[0], c[1], args.device, args.threads, args.from_iteration,
                        c[2] and args.compare == "direct-membership", args.checkpoint)
-        run_block(tr, ck, args.warmup, c[2] and full_div)
+        if args.warmup > 0:
+            run_block(tr, ck, args.warmup, c[2] and full_div)
         built[c] = (tr, ck)
     results: dict = {c: [] for c in configs}
     for _ in range(args.blocks):
@@ -238,19 +253,19 @@ def main(argv: list[str] | None = None) -> int:
         rebuilds = f"{100 * sum(r['rebuilds'] for r in rows) / calls:.0f} %" if calls else "–"
         mem = f" {peak_memory(args, c[0], c[1], c[2]):.2f} |" if args.memory else ""
         n = c[1] if c[1] is not None else built[c][0].cfg.latents.n_shapes
-        print(f"| {c[0]} | {n} | {args.compare if c[2] else 'ginn'} | {med[c]:.3f} | " + " | ".join(shares)
+        print(f"| {label(c[0])} | {n} | {args.compare if c[2] else 'ginn'} | {med[c]:.3f} | " + " | ".join(shares)
               + f" | {rebuilds} |{mem}")
     if args.compare != "none":
         for preset, s, full in configs:
             if not full:
-                print(f"{preset} S={s}: ginn / {args.compare} = {med[(preset, s, False)] / med[(preset, s, True)]:.2f}")
+                print(f"{label(preset)} S={s}: ginn / {args.compare} = {med[(preset, s, False)] / med[(preset, s, True)]:.2f}")
     if args.shapes and len(args.shapes) > 1:
         lo, hi = args.shapes[0], args.shapes[-1]
         for preset in args.presets:
             for full in ([False, True] if args.compare != "none" else [False]):
                 a, b = med.get((preset, lo, full)), med.get((preset, hi, full))
                 if a and b:
-                    print(f"{preset} ({args.compare if full else 'ginn'}): {lo} -> {hi} shapes costs x{b / a:.2f}, "
+                    print(f"{label(preset)} ({args.compare if full else 'ginn'}): {lo} -> {hi} shapes costs x{b / a:.2f}, "
                           f"exponent {math.log(b / a) / math.log(hi / lo):.2f}")
     print(json.dumps({f"{c[0]}|{c[1]}|{c[2]}": med[c] for c in configs}))
     return 0
