@@ -44,9 +44,8 @@ balancing           feasibility                     the weights below start the 
                                                     the constraint terms; a check that finds a
                                                     constraint violated and off track raises
                                                     them (:mod:`ginn.train.balancing`): on
-                                                    the public suite every run but the
-                                                    bracket's ends all feasible, among them the
-                                                    three the weights alone missed
+                                                    the public suite all 42 runs (14
+                                                    problems, seeds 0-2) end all feasible
                                                     (``docs/results.md``, "Problem suite")
 points              2D: 1024 domain, 512 outside,   per shape and iteration
                     64 obstacle, 128 interface,
