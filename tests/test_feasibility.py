@@ -326,3 +326,21 @@ def test_a_least_diversity_is_a_bound_on_the_set():
     assert evaluate_shapes(rings, Z, P, 256)["feasibility"]["set_violations"]["diversity"]["value"] == pytest.approx(
         0.1 * np.sqrt(2), rel=0.01)
     assert "diversity" not in check_feasibility(rings, Z, replace(P, tolerances=Tolerances(interface=0.2, connected=False)), 256)["ratios"]
+
+
+def test_the_run_records_the_spec_it_trained(tmp_path):
+    """A spec changed in memory (a topology target added) is what ``problem.yaml`` holds and what
+    ``ginn eval`` judges; an unchanged spec's file is copied as it is."""
+    from ginn.problems import load_spec
+    from ginn.problems.spec import TopologySpec
+
+    over = {"training": {"iterations": 2, "feasibility_checks": 0}, "latents": {"n_shapes": 1},
+            "model": {"hidden": [8, 8]}, "sampling": {"n_domain": 64, "n_interface": 16}}
+    spec, cfg = runs.resolve("obstacle", "demo", over)
+    plain = runs.train(spec, cfg, tmp_path / "plain", progress=False, results=False).run_dir
+    assert (plain / "problem.yaml").read_bytes() == open(spec.source, "rb").read()
+    holes = spec.model_copy(update={"topology": TopologySpec.model_validate({"holes": 2}, context={"dim": 2})})
+    run = runs.train(holes, cfg, tmp_path / "holes", progress=False, results=False).run_dir
+    assert load_spec(run / "problem.yaml").build().topology.targets == {1: 2}
+    verdict = runs.evaluate(run, resolution=64)["feasibility"]["violations"][0]
+    assert verdict["topology"]["bound"] == {"holes": 2}

@@ -19,6 +19,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import yaml
 from torch import Tensor, nn
 
 from .config import RunConfig, build_config, deep_merge, parse_set, with_overrides
@@ -103,6 +104,20 @@ def _spec_file(spec: ProblemSpec) -> Path | None:
     return Path(spec.source) if Path(spec.source).is_file() else None
 
 
+def _spec_record(spec: ProblemSpec) -> tuple[Path | None, str | None]:
+    """What ``problem.yaml`` of a run holds: the spec's file (comments and all) when the spec is
+    what that file says, else the spec itself as YAML (a spec changed in memory, e.g. a topology
+    target added by ``benchmarks/suite.py``; its mesh paths are absolute)."""
+    src = _spec_file(spec)
+    if src is not None:
+        try:
+            if load_spec(src).model_dump(mode="json") == spec.model_dump(mode="json"):
+                return src, None
+        except GinnError:
+            pass
+    return None, yaml.safe_dump(spec.model_dump(mode="json", exclude_none=True, by_alias=True), sort_keys=False)
+
+
 def _finish(trainer: Trainer, task: Task, run_dir: Path, results: bool, say: Say) -> Outcome:
     """Train to the end (the trainer keeps ``status.json`` true) and write the result files."""
     try:
@@ -173,7 +188,8 @@ def train(
     run_dir = on_main(dist, lambda: new_run_dir(spec.name, out))
     main = dist is None or dist.is_main
     if main:
-        write_run_files(run_dir, cfg, _spec_file(spec), notes=spec.derived_notes(cfg))
+        spec_path, spec_text = _spec_record(spec)
+        write_run_files(run_dir, cfg, spec_path, notes=spec.derived_notes(cfg), spec_text=spec_text)
         if prepare is not None:
             prepare(run_dir)
     where = cfg.device if dist is None else f"{dist.world} x {dist.device} ({dist.backend})"

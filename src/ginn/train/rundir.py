@@ -142,16 +142,20 @@ def environment(cfg: RunConfig) -> dict:
     return env
 
 
-def write_run_files(run_dir: Path, cfg: RunConfig, spec_path: Path | None, notes: list[str] | None = None) -> None:
+def write_run_files(run_dir: Path, cfg: RunConfig, spec_path: Path | None, notes: list[str] | None = None,
+                    spec_text: str | None = None) -> None:
     """``config.yaml`` (headed by ``notes`` as comments: the settings derived from the problem's
-    geometry and why), ``problem.yaml`` (a copy of the spec file) and ``env.json``."""
+    geometry and why), ``problem.yaml`` (a copy of the spec file ``spec_path``, or ``spec_text``
+    when given) and ``env.json``."""
     target = run_dir / "config.yaml"
     head = ""
     if notes:
         head = "# derived from the problem's geometry (ginn.problems.derived):\n" + "".join(f"#   {n}\n" for n in notes)
     try:
         target.write_text(head + yaml.safe_dump(config_to_dict(cfg, relevant_only=True), sort_keys=False))
-        if spec_path is not None:
+        if spec_text is not None:
+            (run_dir / "problem.yaml").write_text(spec_text)
+        elif spec_path is not None:
             shutil.copyfile(spec_path, run_dir / "problem.yaml")
         (run_dir / "env.json").write_text(json.dumps(environment(cfg), indent=2))
         (run_dir / _CLAIM).unlink(missing_ok=True)
