@@ -88,6 +88,13 @@ def cross_values(field: Field, xb: Tensor, Z: Tensor) -> Tensor:
     return field(X, ZZ).reshape(S, S, m)
 
 
+def pair_values(field: Field, x: Tensor, z: Tensor) -> Tensor:
+    """Values of pair ``p``'s field at pair ``p``'s points: ``x (P, n, d)``, ``z (P, k)`` -> ``(P, n)``
+    (``x`` the samples of one shape, ``z`` the latent code of another)."""
+    P, n, d = x.shape
+    return field(x.reshape(-1, d), z[:, None, :].expand(P, n, z.shape[-1]).reshape(-1, z.shape[-1])).reshape(P, n)
+
+
 def distance_matrix(V: Tensor, mask: Tensor | None = None, eps: float = 0.0) -> Tensor:
     """Equation 12 from cross values ``V (S, S, m)`` (``V[i, j] = f_j`` on dOmega_i).
 
@@ -139,8 +146,7 @@ def nearest_neighbours(field: Field, xb: Tensor, Z: Tensor, mask: Tensor | None 
     Returns:
         ``(S,)`` indices: the argmin over ``j != i`` of ``d_ij``.
     """
-    S, m, d = xb.shape
-    k = Z.shape[-1]
+    S, m, _ = xb.shape
     m1 = max(1, m // 4) if prefix is None else min(max(1, int(prefix)), m)
     with torch.no_grad():
         w = torch.ones(S, m, dtype=xb.dtype, device=xb.device) if mask is None else mask.to(xb.dtype)
@@ -157,9 +163,7 @@ def nearest_neighbours(field: Field, xb: Tensor, Z: Tensor, mask: Tensor | None 
             """exact d^2 for the pairs (rows, cols) and (cols, rows) into ``exact``."""
             key = torch.unique(torch.cat([rows * S + cols, cols * S + rows]))
             r, c = key // S, key % S
-            X = xb[r, m1:].reshape(-1, d)
-            ZZ = Z[c][:, None, :].expand(len(key), m - m1, k).reshape(-1, k)
-            V = field(X, ZZ).reshape(len(key), m - m1)
+            V = pair_values(field, xb[r, m1:], Z[c])
             A = torch.zeros(S, S, dtype=part.dtype, device=part.device)
             A[r, c] = part[r, c] + (V * V * w[r, m1:]).sum(-1) / n[r]
             done = torch.zeros(S, S, dtype=torch.bool, device=part.device)
@@ -202,11 +206,7 @@ def diversity_nearest(
     key = torch.cat([i * S + near, near * S + i])
     pairs, inverse = torch.unique(key, return_inverse=True)
     rows, cols = pairs // S, pairs % S
-    m, d = xb.shape[1], xb.shape[2]
-    k = Z.shape[-1]
-    X = xb[rows].reshape(-1, d)
-    ZZ = Z[cols][:, None, :].expand(len(pairs), m, k).reshape(-1, k)
-    V = field(X, ZZ).reshape(len(pairs), m)
+    V = pair_values(field, xb[rows], Z[cols])
     A = _mean_sq(V, None if mask is None else mask[rows].to(V.dtype))
     a_in, a_out = A[inverse[:S]], A[inverse[S:]]  # A[i, n(i)], A[n(i), i]
     nearest = (a_in + a_out + eps * eps).sqrt() if eps > 0 else (a_in + a_out).clamp_min(_TINY).sqrt()
