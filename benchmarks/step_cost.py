@@ -110,11 +110,16 @@ def build(preset: str, shapes: int | None, device: str, threads: int, from_itera
     if shapes is not None:
         over["latents"] = {"n_shapes": shapes}
     spec, cfg = runs.resolve(problem, name or None, over)
+    state = None if checkpoint is None else load_checkpoint(checkpoint, map_location=device)
+    if state is not None and int(state["step"]) >= cfg.training.iterations - 100:
+        # a finished run's checkpoint: time Adam steps (past the iterations a step is the L-BFGS phase)
+        more = cfg.training.model_copy(update={"iterations": int(state["step"]) + 10**6})
+        cfg = cfg.model_copy(update={"training": more})
     task = make_task(spec, cfg)
     trainer = Trainer(task, cfg, None, progress=False)
     trainer.step = from_iteration  # the terms active from there on (e.g. connectedness), on the untrained field
-    if checkpoint is not None:  # a trained field instead (a run of the same preset)
-        trainer.load_state_dict(load_checkpoint(checkpoint, map_location=trainer.device))
+    if state is not None:  # a trained field instead (a run of the same preset)
+        trainer.load_state_dict(state)
     clock = Clock()
     if isinstance(task, ShapeTask):
         clock.wrap(task, "sample", "sampling")

@@ -632,3 +632,46 @@ def test_surface_network_is_the_same_with_the_region_lookup():
     np.testing.assert_array_equal(np.isnan(a.path_anchor), np.isnan(b.path_anchor))
     np.testing.assert_array_equal(np.nan_to_num(a.path_anchor), np.nan_to_num(b.path_anchor))
     assert np.isfinite(a.path_anchor).any()
+
+
+def test_full_builds_back_off_while_every_shape_is_whole():
+    """Full builds at calls 0, 10, 30, 50 for one disk (every = 5: the interval doubles after
+    each build with nothing to penalise, up to 4 x 5), and at every fifth call for two disks."""
+
+    def builds(f) -> list[int]:
+        loss_fn = ConnectednessLoss(BOX2, None, ConnectednessConfig(every=5), dtype=DT, options=TIGHT)
+        out = []
+        for call in range(60):
+            loss_fn(f, None)
+            if loss_fn.last_info["update"] == "full":
+                out.append(call)
+        return out
+
+    assert builds(blobs([[0.0, 0.0]], 0.3)) == [0, 10, 30, 50]
+    assert builds(blobs([[-0.5, 0.0], [0.5, 0.0]], 0.25)) == list(range(0, 60, 5))
+
+
+def test_backoff_returns_to_every_when_a_shape_comes_apart():
+    """After two idle builds (calls 0 and 10: interval 20) a shape that splits at call 16 is found
+    by the scheduled build at call 30 and rebuilt every 5 calls from then on; the interval
+    survives a state round trip."""
+    apart = torch.zeros(1, dtype=DT)
+    one, two = blobs([[0.0, 0.0]], 0.3), blobs([[-0.5, 0.0], [0.5, 0.0]], 0.25)
+
+    def f(x, z=None):
+        return two(x) if float(apart[0]) else one(x)
+
+    loss_fn = ConnectednessLoss(BOX2, None, ConnectednessConfig(every=5), dtype=DT, options=TIGHT)
+    for _ in range(16):
+        loss_fn(f, None)
+    assert loss_fn.interval == 20
+    restored = ConnectednessLoss(BOX2, None, ConnectednessConfig(every=5), dtype=DT, options=TIGHT)
+    restored.load_state_dict(loss_fn.state_dict())
+    assert restored.interval == 20
+    apart[0] = 1.0
+    kinds = []
+    for _ in range(30):
+        restored(f, None)
+        kinds.append(restored.last_info["update"])
+    assert [i + 16 for i, k in enumerate(kinds) if k == "full"] == [30, 35, 40, 45]
+    assert restored.last_info["n_components"] == [2] and restored.interval == 5

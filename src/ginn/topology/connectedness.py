@@ -366,6 +366,7 @@ class ConnectednessLoss(ConnectednessLossBase):
         self.generator = torch.Generator().manual_seed(self.options.seed)
         self.step = 0
         self.last_full = -(10**9)
+        self.interval = int(config.every)
         self.points: CriticalPoints | None = None
         self.network: SurfaceNetwork | None = None
         self.penalty: np.ndarray | None = None
@@ -392,6 +393,7 @@ class ConnectednessLoss(ConnectednessLossBase):
             "format": 2,
             "step": self.step,
             "last_full": self.last_full,
+            "interval": self.interval,
             "latents": (self._latents if self._latents is not None else torch.zeros(0, 0)).detach().cpu(),
             "generator": self.generator.get_state(),
         }
@@ -410,6 +412,7 @@ class ConnectednessLoss(ConnectednessLossBase):
         call, or by an older version) seeds the next full build with the stored points instead."""
         self.step = int(state["step"])
         self.last_full = int(state["last_full"])
+        self.interval = int(state.get("interval", self.config.every))
         lat = state["latents"]
         self._latents = lat.to(self.device, self.dtype) if lat.numel() else None
         self.points = self.network = self.penalty = None
@@ -537,7 +540,7 @@ class ConnectednessLoss(ConnectednessLossBase):
             self.points is None
             or self.network is None
             or not self._same_latents(Zd)
-            or self.step - self.last_full >= self.config.every
+            or self.step - self.last_full >= self.interval
         )
         warm_ok = None
         reason = "warm"
@@ -548,6 +551,7 @@ class ConnectednessLoss(ConnectednessLossBase):
             self._latents = Zd
             self._full_build(field, Zd)
             self._penalise(field, Zd, S)
+            self._next_interval()
             reason = "full"
         loss = self._loss(field, Z, S)
         pts = self.points
@@ -556,6 +560,7 @@ class ConnectednessLoss(ConnectednessLossBase):
         self.last_info = {
             "time": time.perf_counter() - t0,
             "update": reason,
+            "interval": self.interval,
             "warm_ok": warm_ok,
             "n_components": comps,
             "n_disconnected_shapes": int(sum(c > 1 for c in comps)),
@@ -572,6 +577,21 @@ class ConnectednessLoss(ConnectednessLossBase):
         }
         self.step += 1
         return loss
+
+    #: a full build that finds nothing to penalise doubles the interval to the next one, up to
+    #: this many times ``config.every``
+    MAX_BACKOFF = 4
+
+    def _next_interval(self) -> None:
+        """Calls until the next scheduled full build. Between full builds only the penalised
+        saddles are followed, so a build that finds none (every shape in one piece, the margin
+        met) has nothing for warm updates to do, and what it detects (a shape coming apart) is
+        rarer the longer the shapes stay whole: the interval doubles after each such build, up to
+        ``MAX_BACKOFF * config.every``, and returns to ``config.every`` at the first build that
+        penalises anything."""
+        idle = not bool((self.penalty > 0).any()) and len(self._extra[2]) == 0
+        every = int(self.config.every)
+        self.interval = min(2 * self.interval, self.MAX_BACKOFF * every) if idle else every
 
     def _warm_update(self, field, Z: Tensor | None) -> bool:
         """Re-converge the penalised saddles on the current field (a few Newton steps).

@@ -1,0 +1,79 @@
+"""One `ginn` command run alternately with this tree and with an earlier commit's source.
+
+    python benchmarks/against_commit.py --base 644e519 --runs 3 \\
+        --this-extra="--set training.feasibility_checks=0" -- \\
+        train obstacle --preset quick --iterations 200 --no-results --quiet
+
+The base commit's ``src/`` is checked out with ``git worktree`` into a temporary folder; each
+round runs the command once with ``PYTHONPATH`` at the base's source and once at this tree's, in
+alternating order (base first in even rounds), each in a fresh process with the same
+``OMP_NUM_THREADS`` (``--threads``), and writes its run directory to a temporary folder;
+``--this-extra`` adds arguments to this tree's command only (a setting the base does not know,
+e.g. turning off the feasibility checks, which cost a fixed time per check and would otherwise
+weigh on a short command). It prints
+every pair's wall seconds and the ratio of this tree to the base, then the median of the ratios:
+pairing rounds keeps the figure true while the machine's speed drifts. Both sides pay the same
+start-up (imports, problem build), so a command of many iterations gives a step-cost ratio.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shlex
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def run_once(src: Path, args: list[str], out: Path, threads: int) -> float:
+    """Wall seconds of ``python -m ginn ARGS --out OUT`` with ``src`` first on the path."""
+    env = dict(os.environ, PYTHONPATH=str(src), OMP_NUM_THREADS=str(threads), MKL_NUM_THREADS=str(threads))
+    t0 = time.perf_counter()
+    done = subprocess.run([sys.executable, "-m", "ginn", *args, "--out", str(out)], env=env, cwd=out.parent,
+                          stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    seconds = time.perf_counter() - t0
+    if done.returncode != 0:
+        sys.exit(f"ginn {' '.join(args)} failed with {src}: {done.stderr.strip().splitlines()[-1:]}")
+    return seconds
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--base", required=True, help="the commit to compare against (any git revision)")
+    parser.add_argument("--runs", type=int, default=3, help="rounds (one run of each side per round)")
+    parser.add_argument("--threads", type=int, default=1, help="torch threads of every run")
+    parser.add_argument("--this-extra", default="", help="arguments added to this tree's command only (one string)")
+    parser.add_argument("command", nargs=argparse.REMAINDER, help="-- then the ginn command (without --out)")
+    a = parser.parse_args(argv)
+    command = a.command[1:] if a.command[:1] == ["--"] else a.command
+    if not command:
+        parser.error("give the ginn command after --")
+    with tempfile.TemporaryDirectory(prefix="ginn-ab-") as tmp:
+        base_tree = Path(tmp) / "base"
+        subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", "-q", str(base_tree), a.base], check=True)
+        try:
+            sides = {"base": base_tree / "src", "this": ROOT / "src"}
+            commands = {"base": command, "this": command + shlex.split(a.this_extra)}
+            ratios = []
+            print(f"ginn {' '.join(command)}  ({a.threads} thread(s), base {a.base}; this tree adds {a.this_extra!r})")
+            for r in range(a.runs):
+                order = ["base", "this"] if r % 2 == 0 else ["this", "base"]
+                secs = {}
+                for side in order:
+                    secs[side] = run_once(sides[side], commands[side], Path(tmp) / f"run-{side}-{r}", a.threads)
+                ratios.append(secs["this"] / secs["base"])
+                print(f"round {r}: base {secs['base']:.1f} s, this {secs['this']:.1f} s, ratio {ratios[-1]:.3f}", flush=True)
+            print(f"median ratio this/base: {statistics.median(ratios):.3f} (min {min(ratios):.3f}, max {max(ratios):.3f})")
+        finally:
+            subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(base_tree)], check=False)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
