@@ -675,3 +675,19 @@ def test_backoff_returns_to_every_when_a_shape_comes_apart():
         kinds.append(restored.last_info["update"])
     assert [i + 16 for i, k in enumerate(kinds) if k == "full"] == [30, 35, 40, 45]
     assert restored.last_info["n_components"] == [2] and restored.interval == 5
+
+
+def test_grid_splits_joined_between_the_nodes_are_not_penalised():
+    """A death node of the label grid is a split of the shape only when no saddle of the field
+    with f <= 0 lies within two cells: two disks whose smooth union has its neck saddle at
+    f = -0.010 are joined (left out), the same disks 0.06 farther apart (saddle f = +0.019) are
+    not; a node outside E is always left out (lowering f there joins nothing inside E)."""
+    loss_fn = ConnectednessLoss(BOX2, None, ConnectednessConfig(), dtype=DT, options=TIGHT)
+    pos = torch.tensor([[0.04, 0.03]], dtype=DT)
+    joined, apart = blobs([[-0.27, 0.0], [0.27, 0.0]], 0.25), blobs([[-0.3, 0.0], [0.3, 0.0]], 0.25)
+    assert float(joined(torch.zeros(1, 2, dtype=DT))[0]) == pytest.approx(-0.0101, abs=1e-3)
+    assert float(apart(torch.zeros(1, 2, dtype=DT))[0]) == pytest.approx(0.0190, abs=1e-3)
+    inside = np.array([True])
+    assert loss_fn._real_splits(joined, None, 0, pos, inside, 0.0625).tolist() == [False]
+    assert loss_fn._real_splits(apart, None, 0, pos, inside, 0.0625).tolist() == [True]
+    assert loss_fn._real_splits(apart, None, 0, pos, ~inside, 0.0625).tolist() == [False]

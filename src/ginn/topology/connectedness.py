@@ -478,23 +478,30 @@ class ConnectednessLoss(ConnectednessLossBase):
         labels = self._grid_labels(field, Z)
         self.penalty, results = batch_penalties(self.network, valid, S, self.config.eps, labels, self.domain)
         self._results = results
-        self._fallback(results, labels is not None)
+        self._fallback(field, Z, results, labels is not None)
         return results
 
-    def _fallback(self, results: list[Penalties], have_grid: bool) -> None:
+    def _fallback(self, field, Z: Tensor | None, results: list[Penalties], have_grid: bool) -> None:
         """For shapes with component pairs the surface network cannot join (no path in G_a, e.g.
         the separating saddle lies outside the design region, inside an obstacle; or a path that
         passes no saddle, e.g. a sliver along the boundary of E reached through a path anchor),
         penalise the
         death nodes of the cubical persistent homology of the label grid (restricted to E) that
         are farther than two grid cells from every penalised saddle, with raw weights
-        ``1 / (2 f + eps)``, normalised together with the surface-network weights of the shape."""
+        ``1 / (2 f + eps)``, normalised together with the surface-network weights of the shape.
+
+        Two kinds of death node are splits of the grid, not of the shape, and are left out (see
+        :meth:`_real_splits`): one outside E (the grid components meet only through nodes outside
+        E, where lowering ``f`` cannot join them: E itself is thinner than the grid there), and one
+        from which Newton converges to a saddle of the field inside the shape (the components are
+        joined between the grid nodes)."""
         d = self.domain.dim
         xs, ss, ws = [], [], []
         assert self.points is not None and self.penalty is not None
         if have_grid and self.options.fallback and any(r.unreachable_pairs for r in results):
             vals = self._grid_values.copy()
-            vals[:, ~self._region_mask] = np.abs(vals).max() + 1.0
+            sentinel = np.abs(vals).max() + 1.0
+            vals[:, ~self._region_mask] = sentinel
             h = cell_size(self.domain, self.options.label_grid * self.config.grid)
             shape_np = self.points.shape.cpu().numpy()
             xall = self.points.x.detach().cpu().double().numpy()
@@ -505,14 +512,18 @@ class ConnectednessLoss(ConnectednessLossBase):
                 if len(dp.value) == 0:
                     continue
                 pos = self._grid_nodes[tuple(torch.from_numpy(dp.index).T)]
+                real = self._real_splits(field, Z, s, pos, dp.value < sentinel, h)
+                if not real.any():
+                    continue
+                pos, dp_value = pos[torch.from_numpy(real)], dp.value[real]
                 sel = np.nonzero((shape_np == s) & (self.penalty > 0))[0]
-                far = np.ones(len(dp.value), dtype=bool)
+                far = np.ones(len(dp_value), dtype=bool)
                 if len(sel):
                     dist = np.linalg.norm(pos.detach().cpu().double().numpy()[:, None] - xall[sel][None], axis=-1)
                     far = dist.min(axis=1) > 2 * h
                 if not far.any():
                     continue
-                raw = 1.0 / (2.0 * dp.value[far] + self.config.eps)
+                raw = 1.0 / (2.0 * dp_value[far] + self.config.eps)
                 total = r.raw_total + raw.sum()
                 self.penalty[sel] *= r.raw_total / total
                 xs.append(pos[torch.from_numpy(far)])
@@ -526,6 +537,26 @@ class ConnectednessLoss(ConnectednessLossBase):
                 torch.zeros(0, dtype=torch.long, device=self.device),
                 np.zeros(0),
             )
+
+    def _real_splits(self, field, Z: Tensor | None, s: int, pos: Tensor, in_region: np.ndarray, h: float) -> np.ndarray:
+        """Which death nodes of shape ``s`` (positions ``pos (q, d)``, ``in_region (q,)``) separate
+        the shape itself, ``(q,)`` bool: those inside E from which ``warm_steps`` Newton steps
+        (trust radius one grid cell ``h``) do not reach a saddle (Morse index 1) with ``f <= 0``
+        within two cells. A node that does has the two grid components joined through that
+        saddle, between the grid nodes."""
+        real = np.asarray(in_region, dtype=bool).copy()
+        k = np.nonzero(real)[0]
+        if len(k) == 0:
+            return real
+        x0 = pos[torch.from_numpy(k)].to(self.dtype)
+        z = None if Z is None else Z[s].expand(len(k), -1)
+        co = self.options.critical
+        r = newton_refine(field, x0, z, self.domain, steps=self.options.warm_steps, tol=co.tol, max_step=h,
+                          min_step=co.min_step * h, eig_tol=co.eig_tol)
+        index = (torch.linalg.eigvalsh(r.hessian) < 0).sum(-1)
+        joined = r.converged & (index == 1) & (r.f <= 0) & ((r.x - x0).norm(dim=-1) <= 2 * h)
+        real[k[joined.cpu().numpy()]] = False
+        return real
 
     def _same_latents(self, Z: Tensor | None) -> bool:
         if Z is None or self._latents is None:
