@@ -341,7 +341,10 @@ class ShapeTask(Task):
             x0 = take(xd.detach() - step)
         X = x0.reshape(-1, self.d)
         Zf = None if Z is None else fields.broadcast_latents(x0, Z)[1]
-        proj = project_to_zero(model, X, Zf, steps=self.cfg.sampling.projection_steps, tol=1e-3, bounds=(self.lo, self.hi))
+        # converged within a thousandth of the problem's length scale (absolute, a problem drawn in
+        # other units would keep other samples)
+        tol = 1e-3 * length_scale(self.problem)
+        proj = project_to_zero(model, X, Zf, steps=self.cfg.sampling.projection_steps, tol=tol, bounds=(self.lo, self.hi))
         return proj.x.reshape(S, m, self.d), proj.converged.reshape(S, m)
 
     def _boundary_losses(self, model, Z, xb: Tensor, mask: Tensor, active: set[str]) -> dict[str, Tensor]:
