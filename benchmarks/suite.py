@@ -22,8 +22,8 @@ and seed replaces the earlier one, so several suite processes can share ``--out`
 SIGTERM stops the suite after checkpointing the run in progress.
 
 ``--topology KEY=N`` (``holes``, ``tunnels``, ``cavities``; repeatable) adds a target to every
-problem's ``topology`` (``docs/problem-spec.md``): the row's problem is then named with it (``obstacle
-holes=2``, run directory ``obstacle-holes2-s0``), a shape is feasible only with that count, and a
+problem's ``topology`` (``docs/problem-spec.md``): the row's problem is then named with it
+(``obstacle-holes2``, run directory ``obstacle-holes2-s0``), a shape is feasible only with that count, and a
 line under the row counts the shapes per number of holes (2D) or per genus of the exported mesh (3D).
 """
 
@@ -62,7 +62,8 @@ def as_user_spec(spec: ProblemSpec) -> ProblemSpec:
 
 
 def with_topology(spec: ProblemSpec, targets: dict[str, int]) -> ProblemSpec:
-    """``spec`` with ``targets`` added to its topology and to its name (``obstacle holes=2``).
+    """``spec`` with ``targets`` added to its topology and to its name (``obstacle-holes2``: a
+    valid spec name, which the run directory's recorded spec keeps).
 
     Raises:
         SpecError: a target the problem's dimension does not have, or a bad count.
@@ -75,8 +76,8 @@ def with_topology(spec: ProblemSpec, targets: dict[str, int]) -> ProblemSpec:
     except ValidationError as e:
         err = e.errors()[0]
         raise SpecError(f"--topology {'.'.join(map(str, err['loc']))}: {err['msg']} ({spec.name})") from None
-    label = " ".join(f"{k}={v}" for k, v in sorted(targets.items()))
-    return spec.model_copy(update={"topology": topo, "name": f"{spec.name} {label}"})
+    label = "-".join(f"{k}{v}" for k, v in sorted(targets.items()))
+    return spec.model_copy(update={"topology": topo, "name": f"{spec.name}-{label}"})
 
 
 def run_one(problem: str, seed: int, out: Path, iterations: int | None, threads: int, resolution: int | None,

@@ -75,9 +75,12 @@ def test_an_interrupted_run_stops_the_suite(suite, tmp_path, monkeypatch, capsys
 def test_a_topology_target_joins_the_spec_and_the_name(suite, capsys):
     from ginn.errors import SpecError
     from ginn.problems import load_spec
+    from ginn.problems.spec import validate_spec
 
     spec = suite.with_topology(suite.as_user_spec(load_spec("obstacle")), {"holes": 2})
-    assert spec.name == "obstacle holes=2" and spec.build().topology.targets == {1: 2}
+    assert spec.name == "obstacle-holes2" and spec.build().topology.targets == {1: 2}
+    # the run directory records the spec as YAML, which must load again (a valid name)
+    assert validate_spec(spec.model_dump(mode="json", exclude_none=True, by_alias=True)).name == "obstacle-holes2"
     shelf = load_spec(str(ROOT / "benchmarks" / "suite" / "shelf-3d.yaml"))
     assert suite.with_topology(shelf, {"tunnels": 1, "cavities": 0}).build().topology.targets == {1: 1, 2: 0}
     with pytest.raises(SpecError, match="holes"):
