@@ -8,6 +8,8 @@
     python benchmarks/step_cost.py --presets bracket:cpu --checkpoint RUN/checkpoints/last.pt --compare direct-membership
     python benchmarks/step_cost.py --presets bracket:gpu --device cuda --steps 2 --blocks 2
     python benchmarks/step_cost.py --suite                          # the problem suite, derived settings
+    python benchmarks/step_cost.py --presets obstacle: --checkpoint RUN/checkpoints/last.pt \
+        --compare settings --vs-set sampling.n_domain=1024        # a setting against another value
 
 For each configuration it prints seconds per iteration (the median over ``--blocks`` blocks of
 ``--steps`` iterations; configurations take turns block by block, so a drift of the machine's
@@ -19,7 +21,8 @@ presets and prints the scaling exponent of the step cost (``t ~ S^a`` between th
 last count). ``--compare full-diversity`` runs every configuration twice, with the exact
 nearest-pair diversity (ginn's) and with the full ``S x S`` computation, and prints their ratio;
 ``--compare direct-membership`` does the same with the connectedness loss asking the design region
-itself about every path point instead of its exact grid lookup (``ginn.geometry.lookup``).
+itself about every path point instead of its exact grid lookup (``ginn.geometry.lookup``);
+``--compare settings`` with the ``--vs-set`` settings on top (``--set`` applies to all).
 ``--memory`` measures peak memory in a fresh process per configuration (max RSS on the CPU,
 ``torch.cuda.max_memory_allocated`` on a GPU).
 """
@@ -42,6 +45,7 @@ from pathlib import Path
 import torch
 
 from ginn import runs
+from ginn.config import deep_merge, parse_set
 from ginn.tasks import make_task
 from ginn.tasks.shape import ShapeTask
 from ginn.train.checkpoint import load_checkpoint
@@ -104,9 +108,9 @@ class _Timed:
 
 
 def build(preset: str, shapes: int | None, device: str, threads: int, from_iteration: int = 0,
-          direct_membership: bool = False, checkpoint: str | None = None):
+          direct_membership: bool = False, checkpoint: str | None = None, sets: dict | None = None):
     problem, _, name = preset.partition(":")
-    over: dict = {"device": device, "training": {"threads": threads}}
+    over: dict = deep_merge(sets or {}, {"device": device, "training": {"threads": threads}})
     if shapes is not None:
         over["latents"] = {"n_shapes": shapes}
     spec, cfg = runs.resolve(problem, name or None, over)
@@ -185,7 +189,7 @@ def peak_memory(args, preset: str, shapes: int | None, full: bool) -> float:
         "import sys, resource, torch, json; sys.argv = ['step_cost']; import importlib.util as u;"
         f"spec = u.spec_from_file_location('sc', {__file__!r}); m = u.module_from_spec(spec); spec.loader.exec_module(m);"
         f"tr, ck = m.build({preset!r}, {shapes!r}, {args.device!r}, {args.threads}, {args.from_iteration},"
-        f" {full and args.compare == 'direct-membership'}, {args.checkpoint!r});"
+        f" {full and args.compare == 'direct-membership'}, {args.checkpoint!r}, {variant_sets(args, full)!r});"
         f"m.run_block(tr, ck, {args.steps}, {full and args.compare == 'full-diversity'});"
         "cuda = torch.cuda.is_available() and tr.device.type == 'cuda';"
         "print(json.dumps(torch.cuda.max_memory_allocated() / 2**30 if cuda else m.peak_rss()))"
@@ -194,6 +198,12 @@ def peak_memory(args, preset: str, shapes: int | None, full: bool) -> float:
     if r.returncode != 0:
         raise SystemExit(r.stderr)
     return float(r.stdout.strip().splitlines()[-1])
+
+
+def variant_sets(args, baseline: bool) -> dict:
+    """The settings of a configuration: ``--set``, and ``--vs-set`` on top for the baseline."""
+    sets = parse_set(args.set)
+    return deep_merge(sets, parse_set(args.vs_set)) if baseline and args.compare == "settings" else sets
 
 
 def label(preset: str) -> str:
@@ -211,8 +221,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--warmup", type=int, default=2, help="iterations before timing")
     p.add_argument("--threads", type=int, default=2, help="torch threads")
     p.add_argument("--device", default="cpu")
-    p.add_argument("--compare", choices=["none", "full-diversity", "direct-membership"], default="none",
-                   help="also time each configuration with this baseline and print the ratio")
+    p.add_argument("--compare", choices=["none", "full-diversity", "direct-membership", "settings"], default="none",
+                   help="also time each configuration with this baseline and print the ratio (settings: the --vs-set ones)")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="a setting of every configuration")
+    p.add_argument("--vs-set", action="append", default=[], metavar="KEY=VALUE",
+                   help="the baseline's settings for --compare settings (e.g. sampling.n_domain=1024)")
     p.add_argument("--memory", action="store_true", help="also measure peak memory (a fresh process each)")
     p.add_argument("--from-iteration", type=int, default=0,
                    help="time the iterations from this one on (the loss terms active there; the field is untrained)")
@@ -235,7 +248,7 @@ def main(argv: list[str] | None = None) -> int:
     built = {}
     for c in configs:
         tr, ck = build(c[0], c[1], args.device, args.threads, args.from_iteration,
-                       c[2] and args.compare == "direct-membership", args.checkpoint)
+                       c[2] and args.compare == "direct-membership", args.checkpoint, variant_sets(args, c[2]))
         if args.warmup > 0:
             run_block(tr, ck, args.warmup, c[2] and full_div)
         built[c] = (tr, ck)
