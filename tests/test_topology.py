@@ -688,6 +688,6 @@ def test_grid_splits_joined_between_the_nodes_are_not_penalised():
     assert float(joined(torch.zeros(1, 2, dtype=DT))[0]) == pytest.approx(-0.0101, abs=1e-3)
     assert float(apart(torch.zeros(1, 2, dtype=DT))[0]) == pytest.approx(0.0190, abs=1e-3)
     inside = np.array([True])
-    assert loss_fn._real_splits(joined, None, 0, pos, inside, 0.0625).tolist() == [False]
-    assert loss_fn._real_splits(apart, None, 0, pos, inside, 0.0625).tolist() == [True]
-    assert loss_fn._real_splits(apart, None, 0, pos, ~inside, 0.0625).tolist() == [False]
+    assert loss_fn._real_splits(joined, None, np.zeros(1, np.int64), pos, inside, 0.0625).tolist() == [False]
+    assert loss_fn._real_splits(apart, None, np.zeros(1, np.int64), pos, inside, 0.0625).tolist() == [True]
+    assert loss_fn._real_splits(apart, None, np.zeros(1, np.int64), pos, ~inside, 0.0625).tolist() == [False]

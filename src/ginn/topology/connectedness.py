@@ -495,7 +495,6 @@ class ConnectednessLoss(ConnectednessLossBase):
         E, where lowering ``f`` cannot join them: E itself is thinner than the grid there), and one
         from which Newton converges to a saddle of the field inside the shape (the components are
         joined between the grid nodes)."""
-        d = self.domain.dim
         xs, ss, ws = [], [], []
         assert self.points is not None and self.penalty is not None
         if have_grid and self.options.fallback and any(r.unreachable_pairs for r in results):
@@ -505,17 +504,21 @@ class ConnectednessLoss(ConnectednessLossBase):
             h = cell_size(self.domain, self.options.label_grid * self.config.grid)
             shape_np = self.points.shape.cpu().numpy()
             xall = self.points.x.detach().cpu().double().numpy()
-            for s, r in enumerate(results):
-                if r.unreachable_pairs == 0:
-                    continue
-                dp = death_points(vals[s])
-                if len(dp.value) == 0:
-                    continue
-                pos = self._grid_nodes[tuple(torch.from_numpy(dp.index).T)]
-                real = self._real_splits(field, Z, s, pos, dp.value < sentinel, h)
+            deaths = {s: death_points(vals[s]) for s, r in enumerate(results) if r.unreachable_pairs}
+            deaths = {s: dp for s, dp in deaths.items() if len(dp.value)}
+            if not deaths:
+                self._extra = self._no_extra()
+                return
+            pos_all = self._grid_nodes[tuple(torch.from_numpy(np.concatenate([dp.index for dp in deaths.values()])).T)]
+            shape_all = np.concatenate([np.full(len(dp.value), s) for s, dp in deaths.items()])
+            real_all = self._real_splits(field, Z, shape_all, pos_all, np.concatenate([dp.value for dp in deaths.values()]) < sentinel, h)
+            for s, dp in deaths.items():
+                r = results[s]
+                mine = shape_all == s
+                real = real_all[mine]
                 if not real.any():
                     continue
-                pos, dp_value = pos[torch.from_numpy(real)], dp.value[real]
+                pos, dp_value = pos_all[torch.from_numpy(np.nonzero(mine)[0][real])], dp.value[real]
                 sel = np.nonzero((shape_np == s) & (self.penalty > 0))[0]
                 far = np.ones(len(dp_value), dtype=bool)
                 if len(sel):
@@ -529,27 +532,25 @@ class ConnectednessLoss(ConnectednessLossBase):
                 xs.append(pos[torch.from_numpy(far)])
                 ss.append(torch.full((int(far.sum()),), s, dtype=torch.long, device=self.device))
                 ws.append(raw / total)
-        if xs:
-            self._extra = (torch.cat(xs), torch.cat(ss), np.concatenate(ws))
-        else:
-            self._extra = (
-                torch.zeros(0, d, device=self.device, dtype=self.dtype),
-                torch.zeros(0, dtype=torch.long, device=self.device),
-                np.zeros(0),
-            )
+        self._extra = (torch.cat(xs), torch.cat(ss), np.concatenate(ws)) if xs else self._no_extra()
 
-    def _real_splits(self, field, Z: Tensor | None, s: int, pos: Tensor, in_region: np.ndarray, h: float) -> np.ndarray:
-        """Which death nodes of shape ``s`` (positions ``pos (q, d)``, ``in_region (q,)``) separate
-        the shape itself, ``(q,)`` bool: those inside E from which ``warm_steps`` Newton steps
-        (trust radius one grid cell ``h``) do not reach a saddle (Morse index 1) with ``f <= 0``
-        within two cells. A node that does has the two grid components joined through that
-        saddle, between the grid nodes."""
+    def _no_extra(self) -> tuple[Tensor, Tensor, np.ndarray]:
+        return (torch.zeros(0, self.domain.dim, device=self.device, dtype=self.dtype),
+                torch.zeros(0, dtype=torch.long, device=self.device), np.zeros(0))
+
+    def _real_splits(self, field, Z: Tensor | None, shape: np.ndarray, pos: Tensor, in_region: np.ndarray,
+                     h: float) -> np.ndarray:
+        """Which death nodes (of the shapes ``shape (q,)``, positions ``pos (q, d)``, ``in_region
+        (q,)``; all shapes in one Newton pass) separate their shape itself, ``(q,)`` bool: those
+        inside E from which ``warm_steps`` Newton steps (trust radius one grid cell ``h``) do not
+        reach a saddle (Morse index 1) with ``f <= 0`` within two cells. A node that does has the
+        two grid components joined through that saddle, between the grid nodes."""
         real = np.asarray(in_region, dtype=bool).copy()
         k = np.nonzero(real)[0]
         if len(k) == 0:
             return real
         x0 = pos[torch.from_numpy(k)].to(self.dtype)
-        z = None if Z is None else Z[s].expand(len(k), -1)
+        z = None if Z is None else Z[torch.from_numpy(np.asarray(shape)[k]).to(Z.device)]
         co = self.options.critical
         r = newton_refine(field, x0, z, self.domain, steps=self.options.warm_steps, tol=co.tol, max_step=h,
                           min_step=co.min_step * h, eig_tol=co.eig_tol)
