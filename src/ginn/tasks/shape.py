@@ -220,19 +220,10 @@ class ShapeTask(Task):
         if self.shard is not None:  # distributed: every rank samples all shapes, keeps its slice
             lo, hi = self.shard
             Z, pts, S = Z[lo:hi], {k: v[lo:hi] for k, v in pts.items()}, hi - lo
-        names = [k for k in ("domain", "band", "interface", "outside", "obstacle") if k in pts]
-        sizes = [pts[k].shape[1] for k in names]
-        X = torch.cat([pts[k] for k in names], dim=1)  # (S, N, d)
-        N = X.shape[1]
-        if Z is None:
-            Xf, Zf = X.reshape(-1, self.d), None
-        else:
-            Xf, Zf = fields.broadcast_latents(X, Z)
-        v = fields.evaluate(model, Xf, Zf, grad=True, create_graph=True)
-        f = v.f.reshape(S, N)
-        g = v.grad.reshape(S, N, self.d)
-        part_f = dict(zip(names, torch.split(f, sizes, dim=1)))
-        part_g = dict(zip(names, torch.split(g, sizes, dim=1)))
+        # the outside and obstacle samples enter only through their values: a value-only pass is
+        # about a third of a value-and-gradient one (forward and backward)
+        part_f, part_g = self._main_pass(model, Z, pts, ("domain", "band", "interface"), grad=True)
+        part_f.update(self._main_pass(model, Z, pts, ("outside", "obstacle"), grad=False)[0])
         out: dict[str, Tensor] = {}
         if "eikonal" in active:
             ge = part_g["domain"] if "band" not in part_g else torch.cat([part_g["domain"], part_g["band"]], dim=1)
@@ -273,6 +264,24 @@ class ShapeTask(Task):
         if "topology" in active:
             out["topology"] = self.hole_loss()(model, Z)
         return out
+
+    def _main_pass(self, model: nn.Module, Z: Tensor | None, pts: dict[str, Tensor], groups: tuple[str, ...],
+                   grad: bool) -> tuple[dict[str, Tensor], dict[str, Tensor]]:
+        """One batched evaluation of the sample groups ``groups`` of ``pts`` (each ``(S, n_k, d)``)
+        that are present: their values ``(S, n_k)`` and, with ``grad``, gradients ``(S, n_k, d)``,
+        differentiable w.r.t. the parameters."""
+        names = [k for k in groups if k in pts]
+        if not names:
+            return {}, {}
+        sizes = [pts[k].shape[1] for k in names]
+        X = torch.cat([pts[k] for k in names], dim=1)  # (S, N, d)
+        S, N = X.shape[:2]
+        Xf, Zf = (X.reshape(-1, self.d), None) if Z is None else fields.broadcast_latents(X, Z)
+        v = fields.evaluate(model, Xf, Zf, grad=grad, create_graph=True)
+        part_f = dict(zip(names, torch.split(v.f.reshape(S, N), sizes, dim=1)))
+        if not grad:
+            return part_f, {}
+        return part_f, dict(zip(names, torch.split(v.grad.reshape(S, N, self.d), sizes, dim=1)))
 
     def _containment_with_surface(self, model: nn.Module, Z: Tensor | None, f_out: Tensor, x_out: Tensor,
                                   xb: Tensor, mask: Tensor) -> Tensor:
