@@ -27,12 +27,16 @@ most ``2 S m`` points) with one: the same value and gradient as :func:`diversity
 float64), at a cost that grows like ``S m`` for the part that backpropagates.
 
 The nearest pairs are found exactly without the whole matrix (:func:`nearest_neighbours`, branch
-and bound): every sum of squares over a shape's boundary samples is at least its sum over the
-first quarter of them, so the first quarter gives every pair a lower bound of ``d_ij^2``; the pair
-with the lowest bound in each row is completed to its exact distance, and only the pairs whose
-bound lies below that distance can be nearer, so only those are completed. Shapes spread over a
-latent range have few close neighbours: about ``S^2 m / 4 + c S m`` evaluations for ``c`` such
-neighbours instead of ``S^2 m``.
+and bound): every sum of squares over a shape's boundary samples is at least its sum over a part
+of them, so the first quarter of the samples gives every pair a lower bound of ``d_ij^2``. The
+pair with the lowest bound in each row is completed to its exact distance, which bounds the row's
+nearest distance from above; a pair whose lower bound lies above it cannot be nearest. The other
+pairs get the next quarter of their samples, which raises their bounds, are filtered again, and
+so on until the pairs left are exact. Shapes that the diversity term has spread evenly have many
+pairs within a few times the nearest distance, which one quarter cannot rule out and two or three
+do: on a trained 16-shape obstacle (128 samples per shape) about 20 000 evaluations per step
+instead of ``S^2 m = 32 768`` (27 000 when every pair left open by the first quarter is
+completed at once).
 """
 
 from __future__ import annotations
@@ -134,51 +138,62 @@ def _mean_sq(V: Tensor, w: Tensor | None) -> Tensor:
 def nearest_neighbours(field: Field, xb: Tensor, Z: Tensor, mask: Tensor | None = None,
                        prefix: int | None = None) -> Tensor:
     """Each shape's nearest other shape under the distance of equation 12, exactly, without a graph
-    (module docstring: lower bounds from the first ``prefix`` samples, then exact distances for the
-    pairs that can still be nearest).
+    (module docstring: lower bounds from blocks of ``prefix`` samples, refined block by block for
+    the pairs that can still be nearest).
 
     Arguments:
         field: ``(x, z) -> (n,)``.
         xb: boundary points ``(S, m, d)``, ``S >= 2``; Z: latent codes ``(S, k)``.
         mask: valid boundary samples ``(S, m)`` or None.
-        prefix: samples per shape for the bounds (None: a quarter of ``m``, at least 1).
+        prefix: samples per block (None: a quarter of ``m``, at least 1).
 
     Returns:
         ``(S,)`` indices: the argmin over ``j != i`` of ``d_ij``.
     """
     S, m, _ = xb.shape
-    m1 = max(1, m // 4) if prefix is None else min(max(1, int(prefix)), m)
+    b = max(1, m // 4) if prefix is None else min(max(1, int(prefix)), m)
     with torch.no_grad():
         w = torch.ones(S, m, dtype=xb.dtype, device=xb.device) if mask is None else mask.to(xb.dtype)
         n = w.sum(-1).clamp_min(1.0)  # (S,) the mean's denominator over all samples
-        V1 = cross_values(field, xb[:, :m1].contiguous(), Z)  # (S, S, m1)
-        part = (V1 * V1 * w[:, None, :m1]).sum(-1) / n[:, None]  # A_ij over the first samples
+        V1 = cross_values(field, xb[:, :b].contiguous(), Z)  # (S, S, b)
+        part = (V1 * V1 * w[:, None, :b]).sum(-1) / n[:, None]  # A_ij over the samples seen so far
         eye = torch.eye(S, dtype=torch.bool, device=xb.device)
         bound = (part + part.T).masked_fill(eye, float("inf"))  # <= d_ij^2 (before eps)
-        if m1 == m:
+        if b == m:
             return bound.argmin(dim=1)
-        exact = torch.full_like(bound, float("inf"))
 
-        def complete(rows: Tensor, cols: Tensor) -> None:
-            """exact d^2 for the pairs (rows, cols) and (cols, rows) into ``exact``."""
+        def add(rows: Tensor, cols: Tensor, lo: int, hi: int) -> Tensor:
+            """Samples ``lo:hi`` added to the partial sums of the pairs (rows, cols) and (cols, rows);
+            returns the ``(S, S)`` mask of the pairs added in both directions."""
             key = torch.unique(torch.cat([rows * S + cols, cols * S + rows]))
             r, c = key // S, key % S
-            V = pair_values(field, xb[r, m1:], Z[c])
-            A = torch.zeros(S, S, dtype=part.dtype, device=part.device)
-            A[r, c] = part[r, c] + (V * V * w[r, m1:]).sum(-1) / n[r]
+            V = pair_values(field, xb[r, lo:hi], Z[c])
+            part[r, c] += (V * V * w[r, lo:hi]).sum(-1) / n[r]
             done = torch.zeros(S, S, dtype=torch.bool, device=part.device)
             done[r, c] = True
-            both = done & done.T
-            exact[both] = (A + A.T)[both]
+            return done & done.T
 
         i = torch.arange(S, device=xb.device)
         first = bound.argmin(dim=1)
-        complete(i, first)
-        best = exact[i, first]  # (S,) an upper bound of each row's nearest d^2
-        open_ = (bound <= best[:, None]) & ~torch.isfinite(exact)
-        if open_.any():
+        exact = torch.full_like(bound, float("inf"))
+        saved = part.clone()  # the other pairs' sums stay at the first block
+        both = add(i, first, b, m)
+        exact[both] = (part + part.T)[both]
+        part = torch.where(both, part, saved)
+        best = exact.min(dim=1).values  # (S,) an upper bound of each row's nearest d^2
+        # the pairs whose bound is below their row's best, one more block at a time: a bound only
+        # grows and a best only falls, so the pairs still open at a block were open at the last
+        for lo in range(b, m, b):
+            hi = min(m, lo + b)
+            open_ = (bound <= best[:, None]) & ~torch.isfinite(exact)
+            if not open_.any():
+                break
             r, c = open_.nonzero(as_tuple=True)
-            complete(r, c)
+            both = add(r, c, lo, hi)
+            bound = torch.where(both, part + part.T, bound)
+            if hi == m:
+                exact[both] = bound[both]
+                best = exact.min(dim=1).values
         return exact.argmin(dim=1)
 
 
