@@ -100,7 +100,9 @@ class _Timed:
             out = self._inner(*a, **kw)
         info = getattr(self._inner, "last_info", None) or {}
         self._clock.calls += 1
-        self._clock.rebuilds += info.get("update") == "full"
+        # the share of the shapes built afresh (a build can take some shapes only)
+        n = len(info.get("n_components") or [1])
+        self._clock.rebuilds += info["rebuilt"] / n if "rebuilt" in info else float(info.get("update") == "full")
         return out
 
     def __getattr__(self, attr):

@@ -333,11 +333,16 @@ def test_warm_update_and_fallback():
     x, _, _ = loss_fn.penalised_points()
     np.testing.assert_allclose(x.numpy(), [[0.01, 0.0]], atol=1e-6)
     assert float(loss) == pytest.approx(float(f(x)[0]), abs=1e-10)
-    # a drastic change: the disks merge, the saddle disappears -> full rebuild
+    # a drastic change: the disks merge, the saddle disappears -> it is dropped, and the next
+    # scheduled build (call 100) finds one piece
     shift[0], shift[1] = 0.6, 0.0
     loss = loss_fn(f, None)
-    assert loss_fn.last_info["update"] == "full"
-    assert loss_fn.last_info["n_components"] == [1] and float(loss) == 0.0
+    assert loss_fn.last_info["update"] == "warm" and loss_fn.last_info["warm_failed"] == 1
+    assert float(loss) == 0.0 and loss_fn.penalised_points()[0].shape[0] == 0
+    while loss_fn.step < 100:
+        assert float(loss_fn(f, None)) == 0.0 and loss_fn.last_info["update"] == "warm"
+    loss_fn(f, None)
+    assert loss_fn.last_info["update"] == "full" and loss_fn.last_info["n_components"] == [1]
 
 
 def test_pair_joined_only_through_a_maximum_goes_to_the_fallback():
@@ -675,6 +680,84 @@ def test_backoff_returns_to_every_when_a_shape_comes_apart():
         kinds.append(restored.last_info["update"])
     assert [i + 16 for i, k in enumerate(kinds) if k == "full"] == [30, 35, 40, 45]
     assert restored.last_info["n_components"] == [2] and restored.interval == 5
+
+
+def _by_latent(*fields):
+    """A two-shape field: ``fields[i]`` where the latent code is ``i``."""
+
+    def f(x, z):
+        which = z[:, 0].round().long()
+        return torch.stack([g(x) for g in fields], dim=1).gather(1, which[:, None])[:, 0]
+
+    return f
+
+
+def test_each_shape_keeps_its_own_build_schedule():
+    """Shape 0 one disk, shape 1 two: shape 0 is built at calls 0, 10, 30, 50 (its interval
+    doubles up to 4 x 5 while nothing is penalised on it) and shape 1 at every fifth call; a build
+    of shape 1 alone leaves shape 0's vertices and paths as they were and gives shape 1 the
+    penalised saddle and weight a build of both finds."""
+    one, two = blobs([[0.0, 0.0]], 0.3), blobs([[-0.5, 0.0], [0.5, 0.0]], 0.25)
+    f, Z = _by_latent(one, two), torch.tensor([[0.0], [1.0]], dtype=DT)
+    loss_fn = ConnectednessLoss(BOX2, None, ConnectednessConfig(every=5), dtype=DT, options=TIGHT)
+    built: list[list[int]] = [[], []]
+    for call in range(60):
+        loss_fn(f, Z)
+        for s in (0, 1):
+            if loss_fn.last_full[s] == call:
+                built[s].append(call)
+        if call == 5:
+            assert loss_fn.last_info["update"] == "partial" and loss_fn.last_info["rebuilt"] == 1
+            fresh = ConnectednessLoss(BOX2, None, ConnectednessConfig(every=5), dtype=DT, options=TIGHT)
+            fresh(f, Z)
+            x, sh, p = loss_fn.penalised_points()
+            xf, shf, pf = fresh.penalised_points()
+            np.testing.assert_allclose(x.numpy(), xf.numpy(), atol=1e-8)
+            assert sh.tolist() == shf.tolist() == [1]
+            np.testing.assert_allclose(p.numpy(), pf.numpy())
+            assert loss_fn.last_info["n_components"] == fresh.last_info["n_components"] == [1, 2]
+            net = loss_fn.network
+            assert net.points.shape.tolist() == sorted(net.points.shape.tolist())
+            starts, ends = net.path_start, net.path_end[net.path_end >= 0]
+            same = net.points.shape[torch.from_numpy(net.path_end[net.path_end >= 0])]
+            assert same.tolist() == net.points.shape[torch.from_numpy(starts[net.path_end >= 0])].tolist()
+            assert len(ends) == len(fresh.network.edges)
+    assert built == [[0, 10, 30, 50], list(range(0, 60, 5))]
+    assert loss_fn.interval.tolist() == [20, 5]
+    restored = ConnectednessLoss(BOX2, None, ConnectednessConfig(every=5), dtype=DT, options=TIGHT)
+    restored.load_state_dict(loss_fn.state_dict())
+    assert restored.interval.tolist() == [20, 5] and restored.last_full.tolist() == [50, 55]
+
+
+def test_a_saddle_the_warm_update_loses_is_dropped_until_the_scheduled_build():
+    """Both shapes two disks, penalised saddles; shape 1 then becomes one disk at the origin (its
+    saddle is now a minimum: the warm update cannot re-converge it). Its weight goes to 0 while
+    shape 0's saddle is re-converged and keeps its weight; nothing is built before the next
+    scheduled call (every 4th), where both shapes, penalised at their last build, are built and
+    shape 1 is one piece."""
+    merged = torch.zeros(1, dtype=DT)
+    two, joined = blobs([[-0.5, 0.0], [0.5, 0.0]], 0.25), blobs([[0.0, 0.0]], 0.35)
+
+    def second(x):
+        return joined(x) if float(merged[0]) else two(x)
+
+    f, Z = _by_latent(two, second), torch.tensor([[0.0], [1.0]], dtype=DT)
+    loss_fn = ConnectednessLoss(BOX2, None, ConnectednessConfig(every=4), dtype=DT, options=TIGHT)
+    loss_fn(f, Z)
+    assert loss_fn.last_info["n_components"] == [2, 2]
+    x0, _, _ = loss_fn.penalised_points()
+    merged[0] = 1.0
+    loss = loss_fn(f, Z)
+    info = loss_fn.last_info
+    assert info["update"] == "warm" and info["warm_failed"] == 1 and loss_fn.last_full.tolist() == [0, 0]
+    x, sh, p = loss_fn.penalised_points()
+    assert sh.tolist() == [0] and float(p[0]) == 1.0
+    np.testing.assert_allclose(x.numpy(), x0[:1].numpy(), atol=1e-8)
+    assert float(loss) == pytest.approx(float(two(x)[0]) / 2, abs=1e-10)  # the mean over 2 shapes
+    loss_fn(f, Z), loss_fn(f, Z)
+    assert loss_fn.last_info["update"] == "warm"
+    loss_fn(f, Z)
+    assert loss_fn.last_info["update"] == "full" and loss_fn.last_info["n_components"] == [2, 1]
 
 
 def test_grid_splits_joined_between_the_nodes_are_not_penalised():

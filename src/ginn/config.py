@@ -167,8 +167,8 @@ class ConnectednessConfig(_Strict):
 
     method: Literal["surface-network", "persistent-homology"] = Field(
         "surface-network", description="the paper's surface-network loss, or 0-dimensional cubical persistent homology (cripser)")
-    every: int = Field(10, ge=1, description="full surface-network rebuild every K steps while a shape has something to join "
-        "(warm updates between; up to 4 K while nothing is penalised)")
+    every: int = Field(10, ge=1, description="full surface-network builds at every K-th step, of the shapes due: a shape "
+        "every K steps while it has something to join, up to 4 K while nothing is penalised on it (warm updates between)")
     grid: int = Field(16, ge=2, description="seed grid resolution per axis (surface network) or PH grid resolution")
     restrict_to_design_region: bool = Field(True, description="count only the part of the shape inside the design region E")
     eps: float = Field(1e-2, gt=0, description="epsilon in p_k += 1/(d + eps)")

@@ -34,10 +34,15 @@ Cheap across steps (:class:`ConnectednessLoss`): the critical points persist. On
 full build only the *penalised saddles* (the only points the loss depends on) are re-converged
 with a few Newton steps on the current field and the loss is evaluated there with the stored
 weights; one that fell inside the shape has joined its components, and its weight becomes 0 until
-the next full build; if one of them does not converge, leaves the box or changes its Morse index,
-a full build runs instead. A full build (grid seeds plus all
-previous points, Newton, DBSCAN, path tracing, grid labels, penalties) runs at least every
-``config.every`` steps, and whenever the latent codes change. Re-converging *all* critical points
+the shape's next full build; so does one that does not converge, leaves the box or changes its
+Morse index. Full builds (grid seeds plus the shape's previous critical points, Newton, DBSCAN,
+path tracing, grid labels, penalties) run at every ``config.every``-th call, for the shapes due
+then, in one batch: a shape is due ``config.every`` calls after a build that penalised something
+on it, up to four times later after one that did not (:meth:`ConnectednessLoss._next_interval`);
+every shape is built when the latent codes change. No shape's build depends on another's, so the
+others keep their vertices, paths and weights. A build's cost is mostly fixed (the path-tracing
+and Newton loops run as long as their slowest member), so the builds are batched on those calls
+rather than run per shape whenever one is due or loses a saddle. Re-converging *all* critical points
 is not attempted: on a SIREN one optimiser step moves the flat minima by up to a tenth of the
 domain (measured in the obstacle setting), so tracking them is neither cheap nor reliable, while
 the saddles the loss needs are well conditioned.
@@ -365,8 +370,9 @@ class ConnectednessLoss(ConnectednessLossBase):
         self.options = options or SurfaceNetworkLossOptions()
         self.generator = torch.Generator().manual_seed(self.options.seed)
         self.step = 0
-        self.last_full = -(10**9)
-        self.interval = int(config.every)
+        # per shape: the call of its last full build and the calls until its next one
+        self.last_full = np.zeros(0, dtype=np.int64)
+        self.interval = np.zeros(0, dtype=np.int64)
         self.points: CriticalPoints | None = None
         self.network: SurfaceNetwork | None = None
         self.penalty: np.ndarray | None = None
@@ -390,10 +396,10 @@ class ConnectednessLoss(ConnectednessLossBase):
         they belong to, the counters and the seed generator's state. A loss restored from it
         continues exactly as the uninterrupted one would."""
         state: dict = {
-            "format": 2,
+            "format": 3,
             "step": self.step,
-            "last_full": self.last_full,
-            "interval": self.interval,
+            "last_full": torch.from_numpy(self.last_full.copy()),
+            "interval": torch.from_numpy(self.interval.copy()),
             "latents": (self._latents if self._latents is not None else torch.zeros(0, 0)).detach().cpu(),
             "generator": self.generator.get_state(),
         }
@@ -411,10 +417,14 @@ class ConnectednessLoss(ConnectednessLossBase):
         """Restore :meth:`state_dict`. A state without the network (one written before the first
         call, or by an older version) seeds the next full build with the stored points instead."""
         self.step = int(state["step"])
-        self.last_full = int(state["last_full"])
-        self.interval = int(state.get("interval", self.config.every))
         lat = state["latents"]
         self._latents = lat.to(self.device, self.dtype) if lat.numel() else None
+        S = 1 if self._latents is None else int(self._latents.shape[0])
+        # earlier formats kept one schedule for all shapes: every shape starts from it
+        last = np.asarray(state["last_full"], dtype=np.int64).reshape(-1)
+        every = np.asarray(state.get("interval", self.config.every), dtype=np.int64).reshape(-1)
+        self.last_full = np.broadcast_to(last, (S,)).copy() if last.size in (1, S) else np.zeros(0, np.int64)
+        self.interval = np.broadcast_to(every, (S,)).copy() if every.size in (1, S) else np.zeros(0, np.int64)
         self.points = self.network = self.penalty = None
         self._seeds = None
         if "generator" in state:
@@ -440,21 +450,96 @@ class ConnectednessLoss(ConnectednessLossBase):
             return np.ones(pts.m, dtype=bool)
         return self._membership.contains(pts.x).cpu().numpy().astype(bool)
 
-    def _full_build(self, field, Z: Tensor | None) -> None:
+    def _build(self, field, Z: Tensor | None, sub: np.ndarray | None = None) -> None:
+        """A full build of the shapes ``sub`` (``(k,)`` indices; None: every shape): critical points
+        (seeded with their previous ones), paths, grid labels, penalties and fallback nodes replace
+        theirs; the other shapes keep what they have (no shape's build depends on another's)."""
+        S = 1 if Z is None else int(Z.shape[0])
+        if sub is not None and len(sub) == S:
+            sub = None
+        Zs = Z if sub is None or Z is None else Z[torch.from_numpy(sub).to(Z.device)]
+        k = S if sub is None else len(sub)
+        pts = find_critical_points(
+            field, Zs, self.domain, self.config.grid, self._previous(sub, S), self.options.critical, self.generator,
+            self.device, self.dtype
+        )
+        self._seeds = None
+        net = trace_surface_network(field, Zs, self.domain, pts, self.config.grid, self.options.paths,
+                                    region=self._membership)
+        labels = self._grid_labels(field, Zs)
+        penalty, results = batch_penalties(net, self._valid(pts), k, self.config.eps, labels, self.domain)
+        extra = self._fallback(field, Zs, pts, penalty, results, labels is not None)
+        if sub is None:
+            self.points, self.network, self.penalty, self._results, self._extra = pts, net, penalty, results, extra
+        else:
+            self._merge(sub, net, penalty, results, extra)
+
+    def _previous(self, sub: np.ndarray | None, S: int) -> CriticalPoints | None:
+        """The stored critical points of the shapes ``sub`` (None: all), numbered ``0..k-1`` in the
+        order of ``sub``: the warm start of their build (the seeds of a restored first-format state
+        when there are none)."""
         prev = self.points
         if prev is None and self._seeds is not None:
-            x, s = self._seeds
+            x, sh = self._seeds
             d = x.shape[1]
-            prev = CriticalPoints(x, s, x.new_zeros(len(x)), x.new_zeros(len(x)), x.new_zeros(len(x), d), x.new_zeros(len(x), d, d))
-        self._seeds = None
-        pts = find_critical_points(
-            field, Z, self.domain, self.config.grid, prev, self.options.critical, self.generator, self.device, self.dtype
-        )
-        self.network = trace_surface_network(
-            field, Z, self.domain, pts, self.config.grid, self.options.paths, region=self._membership
+            prev = CriticalPoints(x, sh, x.new_zeros(len(x)), x.new_zeros(len(x)), x.new_zeros(len(x), d),
+                                  x.new_zeros(len(x), d, d))
+        if prev is None or sub is None:
+            return prev
+        local = torch.full((S,), -1, dtype=torch.long, device=prev.shape.device)
+        local[torch.from_numpy(sub).to(prev.shape.device)] = torch.arange(len(sub), device=prev.shape.device)
+        mine = (prev.shape < S) & (local[prev.shape.clamp_max(S - 1)] >= 0)
+        return CriticalPoints(prev.x[mine], local[prev.shape[mine]], prev.f[mine], prev.grad_norm[mine],
+                              prev.eigvals[mine], prev.eigvecs[mine])
+
+    def _merge(self, sub: np.ndarray, net: SurfaceNetwork, penalty: np.ndarray, results: list[Penalties],
+               extra: tuple[Tensor, Tensor, np.ndarray]) -> None:
+        """Replace the shapes ``sub``'s vertices, paths, penalties, results and fallback nodes by
+        those of their build (``net`` over their vertices, shapes numbered in the order of ``sub``);
+        the vertices stay sorted by shape and the paths' vertex indices follow them."""
+        assert self.points is not None and self.network is not None and self.penalty is not None
+        old, on = self.points, self.network
+        dev = old.shape.device
+        gsub = torch.from_numpy(sub).to(dev)
+        keep = ~np.isin(old.shape.cpu().numpy(), sub)
+        kidx = np.nonzero(keep)[0]
+        kt = torch.from_numpy(kidx).to(dev)
+        new = net.points
+        fields_ = {k: torch.cat([getattr(old, k)[kt], getattr(new, k)]) for k in self._POINT_FIELDS if k != "shape"}
+        shape = torch.cat([old.shape[kt], gsub[new.shape]])
+        order = torch.argsort(shape, stable=True)
+        m = int(shape.shape[0])
+        pos = np.empty(m, dtype=np.int64)
+        pos[order.cpu().numpy()] = np.arange(m)
+        at = np.full(old.m, -1, dtype=np.int64)
+        at[kidx] = np.arange(len(kidx))  # old vertex -> its row in the concatenation
+        pk = keep[on.path_start] if on.n_paths else np.zeros(0, dtype=bool)
+
+        def ends(e: np.ndarray, rows: np.ndarray) -> np.ndarray:
+            return np.where(e >= 0, pos[rows[np.maximum(e, 0)]], -1)
+
+        new_rows = len(kidx) + np.arange(new.m)
+        pts = CriticalPoints(shape=shape[order], **{k: v[order] for k, v in fields_.items()})
+        cat = lambda a, b: np.concatenate([a, b])  # noqa: E731
+        self.network = SurfaceNetwork(
+            pts,
+            cat(pos[at[on.path_start[pk]]], pos[new_rows[net.path_start]]),
+            cat(ends(on.path_end[pk], at), ends(net.path_end, new_rows)),
+            cat(on.path_descending[pk], net.path_descending),
+            cat(on.path_length[pk], net.path_length),
+            cat(on.path_outside_length[pk], net.path_outside_length),
+            cat(on.path_anchor[pk], net.path_anchor),
+            cat(on.ends[pk], net.ends),
         )
         self.points = pts
-        self.last_full = self.step
+        self.penalty = cat(self.penalty[kidx], penalty)[order.cpu().numpy()]
+        for i, s_ in enumerate(sub):
+            self._results[int(s_)] = results[i]
+        ex, es, ep = self._extra
+        ko = ~np.isin(es.cpu().numpy(), sub)
+        kot = torch.from_numpy(np.nonzero(ko)[0]).to(dev)
+        nx, ns, nw = extra
+        self._extra = (torch.cat([ex[kot], nx.to(ex.dtype)]), torch.cat([es[kot], gsub[ns]]), cat(ep[ko], nw))
 
     def _grid_labels(self, field, Z: Tensor | None) -> list[np.ndarray] | None:
         if self.options.label_grid <= 0:
@@ -471,17 +556,8 @@ class ConnectednessLoss(ConnectednessLossBase):
         self._grid_nodes = pts.reshape(*shape, -1)
         return [label_components((v <= 0) & self._region_mask)[0] for v in vals]
 
-    def _penalise(self, field, Z: Tensor | None, S: int) -> list[Penalties]:
-        assert self.network is not None and self.points is not None
-        self.network.points = self.points
-        valid = self._valid(self.points)
-        labels = self._grid_labels(field, Z)
-        self.penalty, results = batch_penalties(self.network, valid, S, self.config.eps, labels, self.domain)
-        self._results = results
-        self._fallback(field, Z, results, labels is not None)
-        return results
-
-    def _fallback(self, field, Z: Tensor | None, results: list[Penalties], have_grid: bool) -> None:
+    def _fallback(self, field, Z: Tensor | None, points: CriticalPoints, penalty: np.ndarray, results: list[Penalties],
+                  have_grid: bool) -> tuple[Tensor, Tensor, np.ndarray]:
         """For shapes with component pairs the surface network cannot join (no path in G_a, e.g.
         the separating saddle lies outside the design region, inside an obstacle; or a path that
         passes no saddle, e.g. a sliver along the boundary of E reached through a path anchor),
@@ -494,21 +570,23 @@ class ConnectednessLoss(ConnectednessLossBase):
         :meth:`_real_splits`): one outside E (the grid components meet only through nodes outside
         E, where lowering ``f`` cannot join them: E itself is thinner than the grid there), and one
         from which Newton converges to a saddle of the field inside the shape (the components are
-        joined between the grid nodes)."""
+        joined between the grid nodes).
+
+        Works on the shapes of ``Z`` (the last :meth:`_grid_labels` call's), their ``points`` and
+        surface-network ``penalty`` (rescaled in place where fallback nodes share a shape's weight);
+        returns the fallback nodes: positions ``(q, d)``, shapes ``(q,)`` and weights ``(q,)``."""
         xs, ss, ws = [], [], []
-        assert self.points is not None and self.penalty is not None
         if have_grid and self.options.fallback and any(r.unreachable_pairs for r in results):
             vals = self._grid_values.copy()
             sentinel = np.abs(vals).max() + 1.0
             vals[:, ~self._region_mask] = sentinel
             h = cell_size(self.domain, self.options.label_grid * self.config.grid)
-            shape_np = self.points.shape.cpu().numpy()
-            xall = self.points.x.detach().cpu().double().numpy()
+            shape_np = points.shape.cpu().numpy()
+            xall = points.x.detach().cpu().double().numpy()
             deaths = {s: death_points(vals[s]) for s, r in enumerate(results) if r.unreachable_pairs}
             deaths = {s: dp for s, dp in deaths.items() if len(dp.value)}
             if not deaths:
-                self._extra = self._no_extra()
-                return
+                return self._no_extra()
             pos_all = self._grid_nodes[tuple(torch.from_numpy(np.concatenate([dp.index for dp in deaths.values()])).T)]
             shape_all = np.concatenate([np.full(len(dp.value), s) for s, dp in deaths.items()])
             real_all = self._real_splits(field, Z, shape_all, pos_all, np.concatenate([dp.value for dp in deaths.values()]) < sentinel, h)
@@ -519,7 +597,7 @@ class ConnectednessLoss(ConnectednessLossBase):
                 if not real.any():
                     continue
                 pos, dp_value = pos_all[torch.from_numpy(np.nonzero(mine)[0][real])], dp.value[real]
-                sel = np.nonzero((shape_np == s) & (self.penalty > 0))[0]
+                sel = np.nonzero((shape_np == s) & (penalty > 0))[0]
                 far = np.ones(len(dp_value), dtype=bool)
                 if len(sel):
                     dist = np.linalg.norm(pos.detach().cpu().double().numpy()[:, None] - xall[sel][None], axis=-1)
@@ -528,11 +606,11 @@ class ConnectednessLoss(ConnectednessLossBase):
                     continue
                 raw = 1.0 / (2.0 * dp_value[far] + self.config.eps)
                 total = r.raw_total + raw.sum()
-                self.penalty[sel] *= r.raw_total / total
+                penalty[sel] *= r.raw_total / total
                 xs.append(pos[torch.from_numpy(far)])
                 ss.append(torch.full((int(far.sum()),), s, dtype=torch.long, device=self.device))
                 ws.append(raw / total)
-        self._extra = (torch.cat(xs), torch.cat(ss), np.concatenate(ws)) if xs else self._no_extra()
+        return (torch.cat(xs), torch.cat(ss), np.concatenate(ws)) if xs else self._no_extra()
 
     def _no_extra(self) -> tuple[Tensor, Tensor, np.ndarray]:
         return (torch.zeros(0, self.domain.dim, device=self.device, dtype=self.dtype),
@@ -568,23 +646,21 @@ class ConnectednessLoss(ConnectednessLossBase):
         t0 = time.perf_counter()
         S = 1 if Z is None else int(Z.shape[0])
         Zd = None if Z is None else Z.detach().to(self.device, self.dtype)
-        full = (
-            self.points is None
-            or self.network is None
-            or not self._same_latents(Zd)
-            or self.step - self.last_full >= self.interval
-        )
-        warm_ok = None
-        reason = "warm"
-        if not full:
-            warm_ok = self._warm_update(field, Zd)
-            full = not warm_ok
-        if full:
+        self._merged = 0
+        if (self.points is None or self.network is None or not self._same_latents(Zd)
+                or len(self.last_full) != S or len(self._results) != S):
+            self.last_full = np.zeros(S, dtype=np.int64)
+            self.interval = np.full(S, int(self.config.every), dtype=np.int64)
+            rebuild = np.ones(S, dtype=bool)
+        else:  # builds only at every `every`-th call: the shapes due then are built in one batch
+            on_grid = self.step % int(self.config.every) == 0
+            rebuild = (self.step - self.last_full >= self.interval) & on_grid
+        warm_failed = self._warm_update(field, Zd, rebuild) if not rebuild.all() else 0
+        if rebuild.any():
             self._latents = Zd
-            self._full_build(field, Zd)
-            self._penalise(field, Zd, S)
-            self._next_interval()
-            reason = "full"
+            self._build(field, Zd, None if rebuild.all() else np.nonzero(rebuild)[0])
+            self._next_interval(rebuild)
+        reason = "full" if rebuild.all() else "partial" if rebuild.any() else "warm"
         loss = self._loss(field, Z, S)
         pts = self.points
         counts = pts.counts(S)
@@ -592,8 +668,9 @@ class ConnectednessLoss(ConnectednessLossBase):
         self.last_info = {
             "time": time.perf_counter() - t0,
             "update": reason,
-            "interval": self.interval,
-            "warm_ok": warm_ok,
+            "rebuilt": int(rebuild.sum()),
+            "interval": self.interval.tolist(),
+            "warm_failed": warm_failed,
             "n_components": comps,
             "n_disconnected_shapes": int(sum(c > 1 for c in comps)),
             "n_critical": pts.m,
@@ -603,42 +680,53 @@ class ConnectednessLoss(ConnectednessLossBase):
             "n_edges": int(len(self.network.edges)),
             "n_paths": int(self.network.n_paths),
             "n_penalised": int((self.penalty > 0).sum()) + len(self._extra[2]),
-            "n_merged": self._merged if reason == "warm" else 0,
+            "n_merged": self._merged,
             "n_fallback": len(self._extra[2]),
             "unreachable_pairs": int(sum(r.unreachable_pairs for r in self._results)),
         }
         self.step += 1
         return loss
 
-    #: a full build that finds nothing to penalise doubles the interval to the next one, up to
-    #: this many times ``config.every``
+    #: a full build that finds nothing to penalise on a shape doubles the interval to that shape's
+    #: next one, up to this many times ``config.every``
     MAX_BACKOFF = 4
 
-    def _next_interval(self) -> None:
-        """Calls until the next scheduled full build. Between full builds only the penalised
-        saddles are followed, so a build that finds none (every shape in one piece, the margin
-        met) has nothing for warm updates to do, and what it detects (a shape coming apart) is
-        rarer the longer the shapes stay whole: the interval doubles after each such build, up to
-        ``MAX_BACKOFF * config.every``, and returns to ``config.every`` at the first build that
-        penalises anything."""
-        idle = not bool((self.penalty > 0).any()) and len(self._extra[2]) == 0
+    def _next_interval(self, built: np.ndarray) -> None:
+        """Calls until the next scheduled full build of each shape just built (``built (S,)``).
+        Between full builds only the penalised saddles are followed, so a build that finds none on
+        a shape (in one piece, the margin met) leaves warm updates nothing to do there, and what it
+        would detect (the shape coming apart) is rarer the longer the shape stays whole: its
+        interval doubles after each such build, up to ``MAX_BACKOFF * config.every``, and returns to
+        ``config.every`` at the first build that penalises anything on it. Each shape keeps its own
+        schedule, so one shape with a neck to widen does not hold the others at every build."""
+        assert self.points is not None and self.penalty is not None
+        S = len(built)
+        busy = np.zeros(S, dtype=bool)
+        busy[self.points.shape.cpu().numpy()[self.penalty > 0]] = True
+        busy[self._extra[1].cpu().numpy()] = True
         every = int(self.config.every)
-        self.interval = min(2 * self.interval, self.MAX_BACKOFF * every) if idle else every
+        grown = np.minimum(2 * self.interval, self.MAX_BACKOFF * every)
+        self.interval = np.where(built, np.where(busy, every, grown), self.interval)
+        self.last_full = np.where(built, self.step, self.last_full)
 
-    def _warm_update(self, field, Z: Tensor | None) -> bool:
-        """Re-converge the penalised saddles on the current field (a few Newton steps).
+    def _warm_update(self, field, Z: Tensor | None, skip: np.ndarray) -> int:
+        """Re-converge the penalised saddles of the shapes not in ``skip`` (``(S,)`` bool: those
+        about to be rebuilt) on the current field (a few Newton steps).
 
-        The loss depends only on them; the rest of the surface network is kept until the next
-        full build. A saddle that fell inside the shape joined its components there: its weight
-        becomes 0 (that pair is connected; the other weights stay as they are until the next full
-        build). Returns False (a full build is needed) when one of them does not converge, leaves
-        the box or stops being a saddle.
+        The loss depends only on them; the rest of the surface network is kept until the shape's
+        next full build. A saddle that fell inside the shape joined its components there: its
+        weight becomes 0 (that pair is connected; the other weights stay as they are until the
+        next full build). So does one that does not converge, leaves the box or stops being a
+        saddle (typically two components merged and the saddle became a minimum): a shape with a
+        penalised saddle is built afresh at the next scheduled call (its interval is ``every``),
+        which finds what is left to join. Returns how many saddles were lost that way.
         """
         assert self.points is not None and self.penalty is not None
-        self._merged = 0
-        k = torch.from_numpy(np.nonzero(self.penalty > 0)[0]).to(self.device)
-        if k.numel() == 0:
-            return True
+        shape_np = self.points.shape.cpu().numpy()
+        ki = np.nonzero((self.penalty > 0) & ~skip[shape_np])[0]
+        if len(ki) == 0:
+            return 0
+        k = torch.from_numpy(ki).to(self.device)
         h = cell_size(self.domain, self.config.grid)
         co = self.options.critical
         r = newton_refine(
@@ -647,15 +735,18 @@ class ConnectednessLoss(ConnectednessLossBase):
             min_step=co.min_step * h, eig_tol=co.eig_tol,
         )
         lam, V = torch.linalg.eigh(r.hessian)
-        index = (lam < 0).sum(-1)
-        ok = bool(r.converged.all()) and bool((index == self.points.index[k]).all())
-        if ok:
+        good = (r.converged & ((lam < 0).sum(-1) == self.points.index[k])).cpu().numpy()
+        self.penalty[ki[~good]] = 0.0
+        if good.any():
+            j = torch.from_numpy(np.nonzero(good)[0]).to(self.device)
+            kk = k[j]
             pts = self.points
-            pts.x[k], pts.f[k], pts.grad_norm[k], pts.eigvals[k], pts.eigvecs[k] = r.x, r.f, r.grad_norm, lam, V
-            inside = (r.f <= 0).cpu().numpy()
-            self.penalty[k.cpu().numpy()[inside]] = 0.0
+            pts.x[kk], pts.f[kk], pts.grad_norm[kk], pts.eigvals[kk], pts.eigvecs[kk] = (
+                r.x[j], r.f[j], r.grad_norm[j], lam[j], V[j])
+            inside = (r.f[j] <= 0).cpu().numpy()
+            self.penalty[ki[good][inside]] = 0.0
             self._merged = int(inside.sum())
-        return ok
+        return int((~good).sum())
 
     def _loss(self, field, Z: Tensor | None, S: int) -> Tensor:
         x, sh, p = self.penalised_points()
