@@ -176,10 +176,8 @@ def nearest_neighbours(field: Field, xb: Tensor, Z: Tensor, mask: Tensor | None 
         i = torch.arange(S, device=xb.device)
         first = bound.argmin(dim=1)
         exact = torch.full_like(bound, float("inf"))
-        saved = part.clone()  # the other pairs' sums stay at the first block
-        both = add(i, first, b, m)
+        both = add(i, first, b, m)  # only these pairs' sums go past the first block
         exact[both] = (part + part.T)[both]
-        part = torch.where(both, part, saved)
         best = exact.min(dim=1).values  # (S,) an upper bound of each row's nearest d^2
         # the pairs whose bound is below their row's best, one more block at a time: a bound only
         # grows and a best only falls, so the pairs still open at a block were open at the last
