@@ -76,6 +76,30 @@ def test_a_solid_part_is_seeded_at_the_centres_of_disjoint_inscribed_balls():
     assert feature_moves(np.maximum(np.abs(X) - 0.8, np.abs(Y) - 0.5 * M), {1: 1}, M).index.shape == (0, 2)
 
 
+def test_a_seed_stays_where_it_was_put_until_its_node_leaves_the_shape():
+    # a 1.6 x 0.4 bar: one hole wanted, seeded at the deepest node (on the axis, depth 0.2)
+    bar = np.maximum(np.abs(X) - 0.8, np.abs(Y) - 0.2)
+    first = feature_moves(bar, {1: 1}, M)
+    cell = first.seeds[1][0]
+    assert first.index.tolist() == [cell.tolist()] and abs(_at(cell)[1]) <= 1e-12
+    # the push has dented the field there (depth 0.2 -> 0.05): afresh, a deeper node elsewhere is chosen
+    dent = bar + 0.15 * np.exp(-(((X - _at(cell)[0]) ** 2 + Y**2) / 0.1**2))
+    afresh = feature_moves(dent, {1: 1}, M)
+    assert np.abs(_at(afresh.index[0]) - _at(cell)).max() >= 0.1
+    # with the previous seeds the dent keeps being pushed
+    kept = feature_moves(dent, {1: 1}, M, seeds=first.seeds)
+    assert kept.index.tolist() == [cell.tolist()] and kept.raise_.tolist() == [True]
+    # two wanted: the kept seed first, the new one deepest among the nodes whose ball avoids the dent's
+    two = feature_moves(dent, {1: 2}, M, seeds=first.seeds)
+    assert two.index[0].tolist() == cell.tolist()
+    assert np.hypot(*(_at(two.index[1]) - _at(cell))) >= 0.2 + 0.05 - 1e-12
+    # once the node is outside the shape (the dent went through, f > 0) the seed is given up
+    through = bar + 0.25 * np.exp(-(((X - _at(cell)[0]) ** 2 + Y**2) / 0.1**2))
+    assert through[tuple(cell)] > 0
+    after = feature_moves(through, {1: 2}, M, seeds=first.seeds)
+    assert after.counts == {1: 1} and cell.tolist() not in after.seeds[1].tolist()
+
+
 def test_seeds_skip_nodes_outside_E_and_tunnels_are_not_seeded():
     outside = R <= 0.15  # the disk's deepest nodes lie outside E
     values = R - 0.5
@@ -174,6 +198,15 @@ def test_loss_state_round_trips_and_is_zero_at_the_targets():
     b.load_state_dict(a.state_dict())
     for _ in range(4):  # the same cells, then the same recomputation
         assert a(wide, None).item() == b(wide, None).item()
+    # the seeds in use travel with the state: a solid disk's hole stays at the seed it was given
+    disk = RingPlusBumps(0.0, 0.6)
+    c = HoleCountLoss(box, None, {1: 1}, resolution=N, dtype=torch.float64)
+    c(disk, None)
+    seed = c.state_dict()["seeds"][0][1]
+    assert len(seed) == 1
+    d = HoleCountLoss(box, None, {1: 1}, resolution=N, dtype=torch.float64)
+    d.load_state_dict(c.state_dict())
+    assert [{k: v.tolist() for k, v in sd.items()} for sd in d._seeds] == [{1: seed}]
     E = csg.Difference(AABox([-1.0, -1.0], [1.0, 1.0]), Ball([0.0, 0.0], 0.3))
     inside = HoleCountLoss(box, E, {1: 0}, resolution=N, dtype=torch.float64)
     inside(RingPlusBumps(0.45, 0.35), None)

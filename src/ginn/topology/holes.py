@@ -24,7 +24,10 @@ grid: a feature must be wider than the grid to be seen, a gap too):
   are opened at the centres of the largest disjoint balls inscribed in ``{f <= -m}``: the deepest
   node, then the deepest node whose ball (radius ``-f``) is disjoint from the balls already chosen,
   and so on; ``f`` there goes up to ``+m`` (cost ``m - f``). Raising one interior node makes a
-  hole of width about ``2 m`` with the most material round it. A tunnel in 3D (``k = 1 < d - 1``)
+  hole of width about ``2 m`` with the most material round it. A seed stays where it was put
+  while its node is still inside the shape (``f < 0``) and its shape still misses features: the
+  push makes that node shallower, so choosing the deepest node afresh at every recomputation
+  would move the seed away from the dent it has started and no hole would ever open. A tunnel in 3D (``k = 1 < d - 1``)
   needs a passage through the part, not a point: every node on the line through the centre
   toward the nearest point outside the shape, both ways until ``f >= m``, goes up to ``+m``
   (:func:`pierce_cells`; through a plate this is its normal, the shortest way through);
@@ -42,6 +45,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from dataclasses import field as dataclass_field
 
 import numpy as np
 import torch
@@ -63,11 +67,13 @@ class FeatureMoves:
         index: grid indices of the cells ``(q, d)`` (int).
         raise_: ``(q,)`` bool, True: push ``f`` up to ``+m`` there; False: down to ``-m``.
         counts: the Betti numbers of ``{f <= 0}`` on the grid, ``{k: n_k}``.
+        seeds: the seed centres opened, ``{k: (q_k, d)}`` grid indices (for the next recomputation).
     """
 
     index: np.ndarray
     raise_: np.ndarray
     counts: dict[int, int]
+    seeds: dict[int, np.ndarray] = dataclass_field(default_factory=dict)
 
 
 def _pairs(values: np.ndarray, maxdim: int) -> np.ndarray:
@@ -76,7 +82,8 @@ def _pairs(values: np.ndarray, maxdim: int) -> np.ndarray:
     return np.asarray(cripser.computePH(np.ascontiguousarray(values, dtype=np.float64), maxdim=maxdim))
 
 
-def seed_cells(values: np.ndarray, count: int, margin: float, spacing: np.ndarray) -> np.ndarray:
+def seed_cells(values: np.ndarray, count: int, margin: float, spacing: np.ndarray,
+               keep: np.ndarray | None = None) -> np.ndarray:
     """Centres of up to ``count`` disjoint largest balls inscribed in ``{f <= -margin}``.
 
     Greedy: the deepest node (largest ``-f``) first, then the deepest node whose ball of radius
@@ -88,26 +95,31 @@ def seed_cells(values: np.ndarray, count: int, margin: float, spacing: np.ndarra
         count: how many centres at most.
         margin: ``m``: a node must lie deeper than ``m``.
         spacing: node spacing per axis ``(d,)``.
+        keep: earlier centres ``(p, d)``: those still inside the shape (``f < 0``) come first,
+            the ones nearest to opening (highest ``f``) first, and the new balls avoid theirs.
 
     Returns:
-        grid indices ``(q, d)``, ``q <= count``, deepest first.
+        grid indices ``(q, d)``, ``q <= count``: the kept centres, then the new ones deepest first.
     """
+    spacing = np.asarray(spacing, dtype=np.float64)
+    kept = np.zeros((0, values.ndim), np.int64) if keep is None else np.asarray(keep, np.int64).reshape(-1, values.ndim)
+    if len(kept):
+        kept = kept[values[tuple(kept.T)] < 0.0]
+        kept = kept[np.argsort(-values[tuple(kept.T)], kind="stable")][:max(count, 0)]
     depth = -values
     deep = depth > margin
     cells = np.argwhere(deep)
-    if count <= 0 or len(cells) == 0:
-        return np.zeros((0, values.ndim), np.int64)
     r = depth[deep]
-    pos = cells * np.asarray(spacing, dtype=np.float64)
+    pos = cells * spacing
     free = np.ones(len(r), dtype=bool)
-    chosen = []
-    for _ in range(count):
-        if not free.any():
-            break
+    for c in kept:
+        free &= np.linalg.norm(pos - c * spacing, axis=1) >= r - values[tuple(c)]
+    chosen = list(kept)
+    while len(chosen) < count and free.any():
         i = int(np.flatnonzero(free)[np.argmax(r[free])])
         chosen.append(cells[i])
         free &= np.linalg.norm(pos - pos[i], axis=1) >= r + r[i]
-    return np.stack(chosen).astype(np.int64)
+    return np.stack(chosen).astype(np.int64) if chosen else np.zeros((0, values.ndim), np.int64)
 
 
 def pierce_cells(values: np.ndarray, centre: np.ndarray, margin: float, spacing: np.ndarray) -> np.ndarray:
@@ -146,7 +158,7 @@ def pierce_cells(values: np.ndarray, centre: np.ndarray, margin: float, spacing:
 
 def feature_moves(values: np.ndarray, targets: dict[int, int], margin: float,
                   outside: np.ndarray | None = None, outside_value: float | None = None,
-                  spacing: np.ndarray | None = None) -> FeatureMoves:
+                  spacing: np.ndarray | None = None, seeds: dict[int, np.ndarray] | None = None) -> FeatureMoves:
     """The cells and directions of the module docstring for one shape.
 
     Arguments:
@@ -157,6 +169,7 @@ def feature_moves(values: np.ndarray, targets: dict[int, int], margin: float,
         outside: boolean grid of the nodes outside E (their cells cannot be moved), or None.
         outside_value: the value given to those nodes.
         spacing: node spacing per axis ``(d,)`` (for the seeds' distances; None: ``m`` on every axis).
+        seeds: the seed centres of the previous recomputation, ``{k: (p, d)}`` (:attr:`FeatureMoves.seeds`).
     """
     d = values.ndim
     spacing = np.full(d, margin) if spacing is None else np.asarray(spacing, dtype=np.float64)
@@ -164,6 +177,7 @@ def feature_moves(values: np.ndarray, targets: dict[int, int], margin: float,
     idx: list[np.ndarray] = []
     up: list[bool] = []
     counts: dict[int, int] = {}
+    used: dict[int, np.ndarray] = {}
 
     def movable(cell: np.ndarray) -> bool:
         return outside is None or not bool(outside[tuple(cell)])
@@ -211,11 +225,12 @@ def feature_moves(values: np.ndarray, targets: dict[int, int], margin: float,
                 if np.isfinite(c):
                     push(bcell[i] if late else dcell[i], raise_=not late)
                     missing -= 1
-            for cell in seed_cells(values, missing, margin, spacing):
+            used[k] = seed_cells(values, missing, margin, spacing, (seeds or {}).get(k))
+            for cell in used[k]:
                 for c in ([cell] if k == d - 1 else pierce_cells(values, cell, margin, spacing)):
                     push(c, raise_=True)
     index = np.stack(idx).astype(np.int64) if idx else np.zeros((0, d), np.int64)
-    return FeatureMoves(index, np.asarray(up, dtype=bool), counts)
+    return FeatureMoves(index, np.asarray(up, dtype=bool), counts, used)
 
 
 class HoleCountLoss:
@@ -249,16 +264,21 @@ class HoleCountLoss:
             self._outside = ~design_region.contains(pts).reshape(grid.shape).cpu().numpy().astype(bool)
         self._calls = 0
         self._cells: tuple[Tensor, Tensor, Tensor] | None = None  # points (q, d), shape index (q,), sign (q,)
+        self._seeds: list[dict[int, np.ndarray]] = []  # per shape: the seed centres in use, {k: (q, d)}
         self.last_info: dict = {}
 
     def state_dict(self) -> dict:
         cells = None if self._cells is None else [t.cpu() for t in self._cells]
-        return {"calls": self._calls, "cells": cells}
+        seeds = [{int(k): v.tolist() for k, v in sd.items()} for sd in self._seeds]
+        return {"calls": self._calls, "cells": cells, "seeds": seeds}
 
     def load_state_dict(self, state: dict) -> None:
         self._calls = int(state.get("calls", 0))
         cells = state.get("cells")
         self._cells = None if cells is None else tuple(t.to(self.device) for t in cells)
+        d = self.domain.dim
+        self._seeds = [{int(k): np.asarray(v, np.int64).reshape(-1, d) for k, v in sd.items()}
+                       for sd in state.get("seeds", [])]
 
     def _recompute(self, field, Z: Tensor | None) -> None:
         S = 1 if Z is None else int(Z.shape[0])
@@ -270,9 +290,12 @@ class HoleCountLoss:
             top = float(np.abs(vals).max()) + 1.0
             vals[:, self._outside] = top
         xs, ss, signs, counts = [], [], [], []
+        previous = self._seeds if len(self._seeds) == S else [{} for _ in range(S)]
+        self._seeds = []
         for s in range(S):
-            mv = feature_moves(vals[s], self.targets, self.margin, self._outside, top, self._spacing)
+            mv = feature_moves(vals[s], self.targets, self.margin, self._outside, top, self._spacing, previous[s])
             counts.append(mv.counts)
+            self._seeds.append(mv.seeds)
             if len(mv.index):
                 xs.append(self._grid[tuple(torch.from_numpy(mv.index).T)])
                 ss.append(torch.full((len(mv.index),), s, dtype=torch.long))
