@@ -20,8 +20,9 @@ network (the rest are warm updates, ``docs/connectedness.md``). ``--shapes`` ove
 presets and prints the scaling exponent of the step cost (``t ~ S^a`` between the first and the
 last count). ``--compare full-diversity`` runs every configuration twice, with the exact
 nearest-pair diversity (ginn's) and with the full ``S x S`` computation, and prints their ratio;
-``--compare direct-membership`` does the same with the connectedness loss asking the design region
-itself about every path point instead of its exact grid lookup (``ginn.geometry.lookup``);
+``--compare direct-membership`` does the same with the design region answering for itself about
+every candidate sample outside E and every connectedness path point instead of its exact grid
+lookup (``ginn.geometry.lookup``);
 ``--compare settings`` with the ``--vs-set`` settings on top (``--set`` applies to all).
 ``--memory`` measures peak memory in a fresh process per configuration (max RSS on the CPU,
 ``torch.cuda.max_memory_allocated`` on a GPU).
@@ -128,6 +129,8 @@ def build(preset: str, shapes: int | None, device: str, threads: int, from_itera
         trainer.load_state_dict(state)
     clock = Clock()
     if isinstance(task, ShapeTask):
+        if direct_membership:  # E answers for itself: the samples outside E and the paths' points
+            task._membership = task.problem.design_region
         clock.wrap(task, "sample", "sampling")
         clock.wrap(task, "boundary_points", "projection")
         clock.wrap(task, "_boundary_losses", "curvature/strain")  # diversity is subtracted below

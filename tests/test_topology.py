@@ -621,6 +621,23 @@ def test_region_lookup_answers_exactly_like_the_region():
     assert fast_membership(_WithoutDisk(0.15), BOX2).__class__ is _WithoutDisk  # not Lipschitz: unchanged
 
 
+def test_the_fastest_membership_is_the_region_or_its_lookup_and_samples_the_same_points():
+    """Whichever answers faster, the samples outside E drawn through it are the very points drawn
+    through E itself (the same accept decisions from the same random stream)."""
+    from ginn.geometry import Difference, Disk, Rectangle, sampling
+    from ginn.geometry.lookup import RegionLookup, fastest_membership
+
+    region = Difference(Rectangle((-0.8, -0.6), (0.8, 0.6)), Disk((0.2, 0.1), 0.3), Disk((-0.4, -0.2), 0.1))
+    chosen = fastest_membership(region, BOX2, cells=32)
+    assert chosen is region or (isinstance(chosen, RegionLookup) and chosen.region is region)
+    for R in (chosen, RegionLookup(region, BOX2, cells=32)):
+        a = sampling.sample_outside(R, BOX2, 3000, torch.Generator().manual_seed(3), dtype=DT)
+        b = sampling.sample_outside(region, BOX2, 3000, torch.Generator().manual_seed(3), dtype=DT)
+        assert torch.equal(a, b)
+    assert fastest_membership(_WithoutDisk(0.15), BOX2).__class__ is _WithoutDisk
+    assert fastest_membership(None, BOX2) is None
+
+
 def test_surface_network_is_the_same_with_the_region_lookup():
     """Tracing with the grid lookup of the design region gives the very same network (paths,
     lengths, anchors) as tracing with the region itself."""

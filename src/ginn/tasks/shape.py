@@ -25,6 +25,8 @@ from ..eval.shapes import evaluate_shapes, format_table
 from ..extract.export import CONTOUR_FORMATS, export_shapes, latent_label, shape_boundary
 from ..extract.grid import check_grid_memory, make_grid
 from ..geometry import sampling
+from ..geometry.base import Region
+from ..geometry.lookup import fastest_membership
 from ..levelset import project_to_zero
 from ..losses import constraints as C
 from ..losses.diversity import aggregate, distance_matrix, diversity, diversity_nearest
@@ -64,6 +66,7 @@ class ShapeTask(Task):
         self.lo, self.hi = problem.domain.tensors(self.device, dtype)
         self._conn: ConnectednessLossBase | None = None
         self._holes: HoleCountLoss | None = None
+        self._membership: Region | None = None
         self._check: FeasibilityCheck | None = None
         self._iface_cloud: cKDTree | None = None  # a dense sample of the interfaces
         s = cfg.sampling
@@ -156,14 +159,26 @@ class ShapeTask(Task):
             raise ConfigError("distributed training shards the shapes of a generative model: set latents.n_shapes > 1")
         self.dist, self.shard = ctx, ctx.shard(self.cfg.latents.n_shapes)
 
+    @property
+    def membership(self) -> Region | None:
+        """The design region E, or its grid lookup where that answers ``contains`` faster with the
+        same answers (:func:`ginn.geometry.lookup.fastest_membership`): asked about every
+        candidate of the samples outside E at every step, and about every point of every
+        connectedness path. None without a design region."""
+        if self._membership is None and self.problem.design_region is not None:
+            self._membership = fastest_membership(self.problem.design_region, self.problem.domain, device=self.device)
+        return self._membership
+
     def connectedness_loss(self) -> ConnectednessLossBase:
         if self._conn is None:
+            restrict = self.cfg.connectedness.restrict_to_design_region
             self._conn = make_connectedness_loss(
                 self.problem.domain,
-                self.problem.design_region if self.cfg.connectedness.restrict_to_design_region else None,
+                self.problem.design_region if restrict else None,
                 self.cfg.connectedness,
                 self.device,
                 self.dtype,
+                membership=self.membership if restrict else None,
             )
         return self._conn
 
@@ -191,7 +206,7 @@ class ShapeTask(Task):
         out: dict[str, Tensor] = {}
         out["domain"] = sampling.sample_box(p.domain, S * s.n_domain, gen, **kw).reshape(S, -1, d)
         if "design_region" in active and s.n_outside > 0:
-            out["outside"] = sampling.sample_outside(p.design_region, p.domain, S * s.n_outside, gen, **kw).reshape(S, -1, d)
+            out["outside"] = sampling.sample_outside(self.membership, p.domain, S * s.n_outside, gen, **kw).reshape(S, -1, d)
         if "obstacle" in active and s.n_obstacle > 0:
             # split among the obstacles per shape, so that every shape gets the same number
             per = max(1, s.n_obstacle // len(p.obstacles))
@@ -299,7 +314,7 @@ class ShapeTask(Task):
         fo = f_out.reshape(-1) - self._containment_floor(x_out, E, 1.0)
         flat = xb.reshape(-1, self.d)
         with torch.no_grad():
-            out = mask.reshape(-1) & (E.sdf(flat) > 0)
+            out = mask.reshape(-1) & ~self.membership.contains(flat)
         if bool(out.any()):
             xs = flat[out]
             zs = None if Z is None else Z[:, None, :].expand(*xb.shape[:2], Z.shape[-1]).reshape(-1, Z.shape[-1])[out]

@@ -40,6 +40,7 @@ def make_connectedness_loss(
     device=None,
     dtype=torch.float32,
     options=None,
+    membership: Region | None = None,
 ) -> ConnectednessLossBase:
     """The connectedness loss selected by ``config.method``.
 
@@ -50,13 +51,15 @@ def make_connectedness_loss(
         device, dtype: of the field.
         options: :class:`SurfaceNetworkLossOptions` or :class:`PersistenceOptions` (defaults
             when None).
+        membership: ``design_region`` answering ``contains`` faster with the same answers (a
+            :class:`ginn.geometry.lookup.RegionLookup` the caller already has), or None.
 
     Returns:
         a callable ``loss_fn(field, Z) -> scalar tensor`` with ``state_dict``,
         ``load_state_dict`` and ``last_info``.
     """
     if config.method == "surface-network":
-        return ConnectednessLoss(domain, design_region, config, device, dtype, options)
+        return ConnectednessLoss(domain, design_region, config, device, dtype, options, membership)
     if config.method == "persistent-homology":
         return PersistentHomologyLoss(domain, design_region, config, device, dtype, options)
     raise ValueError(f"unknown connectedness method {config.method!r}")

@@ -352,6 +352,8 @@ class ConnectednessLoss(ConnectednessLossBase):
         domain, design_region, config, device, dtype: see :class:`ConnectednessLossBase` (uses
             ``config.every``, ``grid``, ``eps``, ``restrict_to_design_region``).
         options: numerical settings (:class:`SurfaceNetworkLossOptions`).
+        membership: the region answering ``contains`` with the same answers, faster (None: built
+            here with :func:`ginn.geometry.lookup.fast_membership`).
     """
 
     def __init__(
@@ -362,11 +364,12 @@ class ConnectednessLoss(ConnectednessLossBase):
         device=None,
         dtype=torch.float32,
         options: SurfaceNetworkLossOptions | None = None,
+        membership: Region | None = None,
     ):
         super().__init__(domain, design_region, config, device, dtype)
         # the region is asked about every point of every path at every tracing step: answered
         # from a grid of its SDF where that is exact (geometry.lookup), by the region elsewhere
-        self._membership = fast_membership(self.region, domain, device=self.device)
+        self._membership = fast_membership(self.region, domain, device=self.device) if membership is None else membership
         self.options = options or SurfaceNetworkLossOptions()
         self.generator = torch.Generator().manual_seed(self.options.seed)
         self.step = 0
