@@ -10,7 +10,7 @@ from ginn.geometry import csg
 from ginn.geometry.base import Box
 from ginn.geometry.primitives import AABox, Ball
 from ginn.topology import betti_numbers
-from ginn.topology.holes import HoleCountLoss, feature_moves
+from ginn.topology.holes import HoleCountLoss, feature_moves, ring_cells
 
 N = 65
 XS = np.linspace(-1, 1, N)
@@ -64,12 +64,14 @@ def test_kept_missing_and_surplus_holes():
 def test_a_solid_part_is_seeded_at_the_centres_of_disjoint_inscribed_balls():
     # a disk has no dimension-1 feature at any level: its hole is opened at its centre, the deepest node
     mv = feature_moves(R - 0.5, {1: 1}, M)
-    assert mv.counts == {1: 0} and mv.raise_.tolist() == [True] and np.hypot(*_at(mv.index[0])) <= 1e-12
+    up = mv.index[mv.raise_]
+    assert mv.counts == {1: 0} and len(up) == 1 and np.hypot(*_at(up[0])) <= 1e-12
     # a 1.6 x 0.4 bar (depth 0.2 along its axis): two holes wanted, two seeds at least 0.4 apart on the axis
     bar = np.maximum(np.abs(X) - 0.8, np.abs(Y) - 0.2)
     mv = feature_moves(bar, {1: 2}, M)
-    assert mv.raise_.tolist() == [True, True]
-    a, b = _at(mv.index[0]), _at(mv.index[1])
+    up = mv.index[mv.raise_]
+    assert len(up) == 2
+    a, b = _at(up[0]), _at(up[1])
     assert abs(a[1]) <= 1e-12 and abs(b[1]) <= 1e-12 and abs(a[0] - b[0]) >= 0.4 - 1e-12
     assert max(abs(a[0]), abs(b[0])) <= 0.6 + 1e-12  # depth 0.2 within 0.6 of the centre
     # a part thinner than the margin cannot host a hole
@@ -81,23 +83,61 @@ def test_a_seed_stays_where_it_was_put_until_its_node_leaves_the_shape():
     bar = np.maximum(np.abs(X) - 0.8, np.abs(Y) - 0.2)
     first = feature_moves(bar, {1: 1}, M)
     cell = first.seeds[1][0]
-    assert first.index.tolist() == [cell.tolist()] and abs(_at(cell)[1]) <= 1e-12
+    assert first.index[first.raise_].tolist() == [cell.tolist()] and abs(_at(cell)[1]) <= 1e-12
     # the push has dented the field there (depth 0.2 -> 0.05): afresh, a deeper node elsewhere is chosen
     dent = bar + 0.15 * np.exp(-(((X - _at(cell)[0]) ** 2 + Y**2) / 0.1**2))
     afresh = feature_moves(dent, {1: 1}, M)
     assert np.abs(_at(afresh.index[0]) - _at(cell)).max() >= 0.1
     # with the previous seeds the dent keeps being pushed
     kept = feature_moves(dent, {1: 1}, M, seeds=first.seeds)
-    assert kept.index.tolist() == [cell.tolist()] and kept.raise_.tolist() == [True]
+    assert kept.index[kept.raise_].tolist() == [cell.tolist()]
     # two wanted: the kept seed first, the new one deepest among the nodes whose ball avoids the dent's
     two = feature_moves(dent, {1: 2}, M, seeds=first.seeds)
-    assert two.index[0].tolist() == cell.tolist()
-    assert np.hypot(*(_at(two.index[1]) - _at(cell))) >= 0.2 + 0.05 - 1e-12
+    up = two.index[two.raise_]
+    assert up[0].tolist() == cell.tolist()
+    assert np.hypot(*(_at(up[1]) - _at(cell))) >= 0.2 + 0.05 - 1e-12
     # once the node is outside the shape (the dent went through, f > 0) the seed is given up
     through = bar + 0.25 * np.exp(-(((X - _at(cell)[0]) ** 2 + Y**2) / 0.1**2))
     assert through[tuple(cell)] > 0
     after = feature_moves(through, {1: 2}, M, seeds=first.seeds)
     assert after.counts == {1: 1} and cell.tolist() not in after.seeds[1].tolist()
+
+
+def test_a_seed_in_a_strip_thinner_than_its_wall_thickens_the_strip_round_the_hole():
+    # a strip 0.1 wide (depth 0.05, under two cells): a smooth field raised at its axis node rises
+    # across the strip's width; the wall keeps material round the hole
+    strip = np.abs(Y) - 0.05
+    mv = feature_moves(np.maximum(strip, np.abs(X) - 0.8), {1: 1}, M)
+    up, down = mv.index[mv.raise_], mv.index[~mv.raise_]
+    assert len(up) == 1 and abs(_at(up[0])[1]) <= 1e-12
+    # the wall: every node 2 to 2 + sqrt(2) cells from the seed, all held at -m
+    dist = np.hypot(*(np.stack([_at(c) for c in down]) - _at(up[0])).T)
+    assert dist.min() >= 2 * M - 1e-12 and dist.max() < (2 + np.sqrt(2)) * M
+    assert sorted(map(tuple, down.tolist())) == sorted(map(tuple, ring_cells(strip.shape, up[0], M, np.full(2, M)).tolist()))
+    # with the moves made, the strip is one piece with one hole, walled two cells either side
+    v = np.maximum(strip, np.abs(X) - 0.8)
+    v[tuple(down.T)] = np.minimum(v[tuple(down.T)], -M)
+    v[tuple(up.T)] = M
+    assert list(betti_numbers(v <= 0)[:2]) == [1, 1]
+    i, j = up[0]
+    assert v[i, j + 2] <= -M and v[i, j - 2] <= -M and strip[i, j + 2] > 0
+
+
+def test_the_wall_is_a_connected_shell_clipped_to_the_grid():
+    # 2D: the 28 nodes with 4 <= i^2 + j^2 < (2 + sqrt 2)^2 = 11.66 (i, j integers)
+    for d, n in ((2, 28), (3, 176)):
+        cells = ring_cells((11,) * d, np.full(d, 5), 1.0, np.ones(d))
+        dist = np.linalg.norm(cells - 5, axis=1)
+        assert len(cells) == n and (dist >= 2).all() and (dist < 2 + np.sqrt(d)).all()
+        grid = np.zeros((11,) * d, bool)
+        grid[tuple(cells.T)] = True
+        assert list(betti_numbers(grid)) == [1, 1] if d == 2 else [1, 0, 1]  # one loop / one closed surface
+    # anisotropic spacing: distances in the units of the spacing
+    wide = ring_cells((41, 41), np.array([20, 20]), 1.0, np.array([1.0, 0.5]))
+    assert np.ptp(wide[:, 1]) == 2 * np.ptp(wide[:, 0])
+    # at a corner only the nodes inside the grid remain
+    corner = ring_cells((9, 9), np.array([0, 0]), 1.0, np.ones(2))
+    assert (corner >= 0).all() and len(corner) == 9  # the quarter with i, j >= 0
 
 
 def test_seeds_skip_nodes_outside_E_and_tunnels_are_not_seeded():
@@ -107,7 +147,7 @@ def test_seeds_skip_nodes_outside_E_and_tunnels_are_not_seeded():
     values = np.where(outside, top, values)
     mv = feature_moves(values, {1: 2}, M, outside, top)
     assert mv.counts == {1: 1}  # the hole round the part outside E
-    assert len(mv.index) >= 1 and not outside[tuple(mv.index[-1])]
+    assert mv.raise_.any() and not outside[tuple(mv.index.T)].any()
 
 
 def test_raising_the_seeds_gives_the_target_betti_numbers():
@@ -115,7 +155,7 @@ def test_raising_the_seeds_gives_the_target_betti_numbers():
     for target in (1, 2, 3):
         mv = feature_moves(bar, {1: target}, M)
         v = bar.copy()
-        v[tuple(mv.index.T)] = M
+        v[tuple(mv.index.T)] = np.where(mv.raise_, M, np.minimum(v[tuple(mv.index.T)], -M))
         assert list(betti_numbers(v <= 0)[:2]) == [1, target]
     # 3D: a plate |z| <= 0.2 is pierced along z through its centre (a tunnel), a ball gets a cavity
     g = np.linspace(-1, 1, 21)
@@ -130,7 +170,8 @@ def test_raising_the_seeds_gives_the_target_betti_numbers():
     assert list(betti_numbers(v <= 0)) == [1, 1, 0]
     ball = np.sqrt(gx**2 + gy**2 + gz**2) - 0.6
     mv = feature_moves(ball, {2: 1}, h)
-    assert mv.index.tolist() == [[10, 10, 10]]
+    assert mv.index[mv.raise_].tolist() == [[10, 10, 10]]
+    assert not mv.raise_[1:].any() and len(mv.index) > 1  # its wall, already inside the ball: held there
     v = ball.copy()
     v[10, 10, 10] = h
     assert list(betti_numbers(v <= 0)) == [1, 0, 1]

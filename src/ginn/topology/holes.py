@@ -23,8 +23,10 @@ grid: a feature must be wider than the grid to be seen, a gap too):
   features than are missing (a solid part has none: its field has no interior maximum), the rest
   are opened at the centres of the largest disjoint balls inscribed in ``{f <= -m}``: the deepest
   node, then the deepest node whose ball (radius ``-f``) is disjoint from the balls already chosen,
-  and so on; ``f`` there goes up to ``+m`` (cost ``m - f``). Raising one interior node makes a
-  hole of width about ``2 m`` with the most material round it. A seed stays where it was put
+  and so on; ``f`` there goes up to ``+m`` (cost ``m - f``) and the nodes ``2 m`` to ``3 m`` from
+  it go down to ``-m`` (:func:`ring_cells`): a hole of width about ``2 m`` in a wall a cell's
+  diagonal thick, the most material round it, and where the part is thinner than that the wall
+  thickens it instead of the raised node cutting it in two. A seed stays where it was put
   while its node is still inside the shape (``f < 0``) and its shape still misses features: the
   push makes that node shallower, so choosing the deepest node afresh at every recomputation
   would move the seed away from the dent it has started and no hole would ever open. A tunnel
@@ -57,7 +59,7 @@ from ..geometry.base import Box, Region
 from .components import field_on_grid
 from .critical import latents_of
 
-__all__ = ["FeatureMoves", "feature_moves", "seed_cells", "pierce_cells", "HoleCountLoss"]
+__all__ = ["FeatureMoves", "feature_moves", "seed_cells", "ring_cells", "pierce_cells", "HoleCountLoss"]
 
 
 @dataclass
@@ -121,6 +123,30 @@ def seed_cells(values: np.ndarray, count: int, margin: float, spacing: np.ndarra
         chosen.append(cells[i])
         free &= np.linalg.norm(pos - pos[i], axis=1) >= r + r[i]
     return np.stack(chosen).astype(np.int64) if chosen else np.zeros((0, values.ndim), np.int64)
+
+
+def ring_cells(shape: tuple[int, ...], centre: np.ndarray, margin: float, spacing: np.ndarray) -> np.ndarray:
+    """The nodes at distance ``[2 m, (2 + sqrt(d)) m)`` from ``centre``: the wall a seeded hole
+    (cavity) is given. Held at ``f <= -m`` while the centre goes to ``+m``, they make the seed a
+    hole of width about ``2 m`` inside a wall, so that a seed in a part thinner than that thickens
+    it round the hole instead of cutting it. A shell a cell's diagonal thick (``m`` is the largest
+    spacing) closes in the grid: its nodes alone enclose the centre (a loop in 2D, a closed
+    surface in 3D; one a cell thick leaves gaps in 3D).
+
+    Arguments:
+        shape: the grid's shape ``(n_1, ..., n_d)``; centre: a grid index ``(d,)``; margin: ``m``;
+        spacing: node spacing per axis ``(d,)``.
+
+    Returns:
+        grid indices ``(q, d)`` inside the grid.
+    """
+    spacing = np.asarray(spacing, dtype=np.float64)
+    outer = (2.0 + np.sqrt(len(shape))) * margin
+    reach = np.ceil(outer / spacing).astype(np.int64)
+    offsets = np.stack(np.meshgrid(*[np.arange(-r, r + 1) for r in reach], indexing="ij"), -1).reshape(-1, len(shape))
+    dist = np.linalg.norm(offsets * spacing, axis=1)
+    cells = np.asarray(centre, np.int64) + offsets[(dist >= 2.0 * margin) & (dist < outer)]
+    return cells[((cells >= 0) & (cells < np.asarray(shape))).all(1)]
 
 
 def pierce_cells(values: np.ndarray, centre: np.ndarray, margin: float, spacing: np.ndarray) -> np.ndarray:
@@ -228,8 +254,13 @@ def feature_moves(values: np.ndarray, targets: dict[int, int], margin: float,
                     missing -= 1
             used[k] = seed_cells(values, missing, margin, spacing, (seeds or {}).get(k))
             for cell in used[k]:
-                for c in ([cell] if k == d - 1 else pierce_cells(values, cell, margin, spacing)):
-                    push(c, raise_=True)
+                if k == d - 1:
+                    push(cell, raise_=True)
+                    for c in ring_cells(values.shape, cell, margin, spacing):
+                        push(c, raise_=False)
+                else:
+                    for c in pierce_cells(values, cell, margin, spacing):
+                        push(c, raise_=True)
     index = np.stack(idx).astype(np.int64) if idx else np.zeros((0, d), np.int64)
     return FeatureMoves(index, np.asarray(up, dtype=bool), counts, used)
 
