@@ -22,7 +22,8 @@ last count). ``--compare full-diversity`` runs every configuration twice, with t
 nearest-pair diversity (ginn's) and with the full ``S x S`` computation, and prints their ratio;
 ``--compare direct-membership`` does the same with the design region answering for itself about
 every candidate sample outside E and every connectedness path point instead of its exact grid
-lookup (``ginn.geometry.lookup``);
+lookup (``ginn.geometry.lookup``); ``--compare every-saddle`` with the connectedness paths traced
+from every saddle instead of only those in E (the same penalties);
 ``--compare settings`` with the ``--vs-set`` settings on top (``--set`` applies to all).
 ``--memory`` measures peak memory in a fresh process per configuration (max RSS on the CPU,
 ``torch.cuda.max_memory_allocated`` on a GPU).
@@ -41,6 +42,7 @@ import sys
 import time
 from collections import defaultdict
 from contextlib import contextmanager
+from functools import partial
 from pathlib import Path
 
 import torch
@@ -49,6 +51,7 @@ from ginn import runs
 from ginn.config import deep_merge, parse_set
 from ginn.tasks import make_task
 from ginn.tasks.shape import ShapeTask
+from ginn.topology import trace_surface_network
 from ginn.train.checkpoint import load_checkpoint
 from ginn.train.trainer import Trainer
 
@@ -90,6 +93,11 @@ def _full_diversity(field, xb, Z, mask, p, eps):
     return diversity_module.diversity(field, xb, Z, mask, "min", p, eps)
 
 
+def _trace_every_saddle(loss, field, Z, pts, valid):
+    """The connectedness paths from every saddle, in E or not (the baseline of ``every-saddle``)."""
+    return trace_surface_network(field, Z, loss.domain, pts, loss.config.grid, loss.options.paths, region=loss._membership)
+
+
 class _Timed:
     """A callable object (a connectedness loss) whose calls are timed; everything else delegates."""
 
@@ -111,7 +119,7 @@ class _Timed:
 
 
 def build(preset: str, shapes: int | None, device: str, threads: int, from_iteration: int = 0,
-          direct_membership: bool = False, checkpoint: str | None = None, sets: dict | None = None):
+          baseline: str = "none", checkpoint: str | None = None, sets: dict | None = None):
     problem, _, name = preset.partition(":")
     over: dict = deep_merge(sets or {}, {"device": device, "training": {"threads": threads}})
     if shapes is not None:
@@ -129,15 +137,17 @@ def build(preset: str, shapes: int | None, device: str, threads: int, from_itera
         trainer.load_state_dict(state)
     clock = Clock()
     if isinstance(task, ShapeTask):
-        if direct_membership:  # E answers for itself: the samples outside E and the paths' points
+        if baseline == "direct-membership":  # E answers for itself: the samples outside E and the paths' points
             task._membership = task.problem.design_region
         clock.wrap(task, "sample", "sampling")
         clock.wrap(task, "boundary_points", "projection")
         clock.wrap(task, "_boundary_losses", "curvature/strain")  # diversity is subtracted below
         if "connectedness" in trainer.active_terms(10**9):
             loss = task.connectedness_loss()
-            if direct_membership and hasattr(loss, "_membership"):
+            if baseline == "direct-membership" and hasattr(loss, "_membership"):
                 loss._membership = loss.region
+            if baseline == "every-saddle" and hasattr(loss, "_trace"):  # paths from the saddles outside E too
+                loss._trace = partial(_trace_every_saddle, loss)
             task._conn = _Timed(loss, clock, "connectedness")
     clock.wrap(task, "loss_terms", "loss")
     return trainer, clock
@@ -194,7 +204,7 @@ def peak_memory(args, preset: str, shapes: int | None, full: bool) -> float:
         "import sys, resource, torch, json; sys.argv = ['step_cost']; import importlib.util as u;"
         f"spec = u.spec_from_file_location('sc', {__file__!r}); m = u.module_from_spec(spec); spec.loader.exec_module(m);"
         f"tr, ck = m.build({preset!r}, {shapes!r}, {args.device!r}, {args.threads}, {args.from_iteration},"
-        f" {full and args.compare == 'direct-membership'}, {args.checkpoint!r}, {variant_sets(args, full)!r});"
+        f" {args.compare if full else 'none'!r}, {args.checkpoint!r}, {variant_sets(args, full)!r});"
         f"m.run_block(tr, ck, {args.steps}, {full and args.compare == 'full-diversity'});"
         "cuda = torch.cuda.is_available() and tr.device.type == 'cuda';"
         "print(json.dumps(torch.cuda.max_memory_allocated() / 2**30 if cuda else m.peak_rss()))"
@@ -226,7 +236,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--warmup", type=int, default=2, help="iterations before timing")
     p.add_argument("--threads", type=int, default=2, help="torch threads")
     p.add_argument("--device", default="cpu")
-    p.add_argument("--compare", choices=["none", "full-diversity", "direct-membership", "settings"], default="none",
+    p.add_argument("--compare", choices=["none", "full-diversity", "direct-membership", "every-saddle", "settings"],
+                   default="none",
                    help="also time each configuration with this baseline and print the ratio (settings: the --vs-set ones)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="a setting of every configuration")
     p.add_argument("--vs-set", action="append", default=[], metavar="KEY=VALUE",
@@ -253,7 +264,7 @@ def main(argv: list[str] | None = None) -> int:
     built = {}
     for c in configs:
         tr, ck = build(c[0], c[1], args.device, args.threads, args.from_iteration,
-                       c[2] and args.compare == "direct-membership", args.checkpoint, variant_sets(args, c[2]))
+                       args.compare if c[2] else "none", args.checkpoint, variant_sets(args, c[2]))
         if args.warmup > 0:
             run_block(tr, ck, args.warmup, c[2] and full_div)
         built[c] = (tr, ck)

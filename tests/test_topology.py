@@ -656,6 +656,36 @@ def test_surface_network_is_the_same_with_the_region_lookup():
     assert np.isfinite(a.path_anchor).any()
 
 
+def test_paths_are_traced_only_from_saddles_in_E_with_the_same_penalties():
+    """Paths from a saddle outside E join nothing (shape_components, saddle_penalties): tracing
+    from the saddles in E alone gives exactly the other paths, the same components and penalties."""
+    from ginn.topology.connectedness import batch_penalties
+
+    f = blobs([[-0.7, 0.0], [-0.1, 0.0], [0.35, 0.2], [0.8, -0.1]], 0.18)
+    region = _HalfPlane(-0.3)
+    cp = find_critical_points(f, None, BOX2, 16, options=TIGHT.critical, dtype=DT)
+    valid = region.contains(cp.x)
+    every = trace_surface_network(f, None, BOX2, cp, 16, region=region)
+    some = trace_surface_network(f, None, BOX2, cp, 16, region=region, sources=valid)
+    kept = valid.numpy()[every.path_start]
+    assert 0 < some.n_paths == int(kept.sum()) < every.n_paths
+    for k in ("path_start", "path_end", "path_descending", "path_length", "path_outside_length", "ends"):
+        np.testing.assert_array_equal(getattr(every, k)[kept], getattr(some, k))
+    a, ra = batch_penalties(every, valid.numpy(), 1, 0.01)
+    b, rb = batch_penalties(some, valid.numpy(), 1, 0.01)
+    np.testing.assert_array_equal(a, b)
+    assert ra[0].n_components == rb[0].n_components == 3 and a.sum() == pytest.approx(1.0)
+    # the loss traces from its saddles in E: its penalties are those of tracing every saddle
+    loss_fn = ConnectednessLoss(BOX2, region, ConnectednessConfig(), dtype=DT, options=TIGHT)
+    loss_fn(f, None)
+    pts = loss_fn.points
+    full = trace_surface_network(f, None, BOX2, pts, loss_fn.config.grid, TIGHT.paths, region=region)
+    c, _ = batch_penalties(full, region.contains(pts.x).numpy(), 1, loss_fn.config.eps,
+                           loss_fn._grid_labels(f, None), BOX2)
+    np.testing.assert_array_equal(loss_fn.penalty, c)
+    assert loss_fn.network.n_paths == full.n_paths - int((~region.contains(pts.x).numpy())[full.path_start].sum())
+
+
 def test_full_builds_back_off_while_every_shape_is_whole():
     """Full builds at calls 0, 10, 30, 50 for one disk (every = 5: the interval doubles after
     each build with nothing to penalise, up to 4 x 5), and at every fifth call for two disks."""

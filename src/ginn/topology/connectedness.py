@@ -467,15 +467,21 @@ class ConnectednessLoss(ConnectednessLossBase):
             self.device, self.dtype
         )
         self._seeds = None
-        net = trace_surface_network(field, Zs, self.domain, pts, self.config.grid, self.options.paths,
-                                    region=self._membership)
+        valid = self._valid(pts)
         labels = self._grid_labels(field, Zs)
-        penalty, results = batch_penalties(net, self._valid(pts), k, self.config.eps, labels, self.domain)
+        net = self._trace(field, Zs, pts, valid)
+        penalty, results = batch_penalties(net, valid, k, self.config.eps, labels, self.domain)
         extra = self._fallback(field, Zs, pts, penalty, results, labels is not None)
         if sub is None:
             self.points, self.network, self.penalty, self._results, self._extra = pts, net, penalty, results, extra
         else:
             self._merge(sub, net, penalty, results, extra)
+
+    def _trace(self, field, Z: Tensor | None, pts: CriticalPoints, valid: np.ndarray) -> SurfaceNetwork:
+        """The paths from the saddles in E (``valid (m,)``): shape_components and
+        saddle_penalties use no other path."""
+        return trace_surface_network(field, Z, self.domain, pts, self.config.grid, self.options.paths,
+                                     region=self._membership, sources=torch.from_numpy(valid).to(pts.f.device))
 
     def _previous(self, sub: np.ndarray | None, S: int) -> CriticalPoints | None:
         """The stored critical points of the shapes ``sub`` (None: all), numbered ``0..k-1`` in the

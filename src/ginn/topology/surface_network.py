@@ -150,6 +150,7 @@ def trace_surface_network(
     grid: int = 16,
     options: PathOptions = PathOptions(),
     region: Region | None = None,
+    sources: Tensor | None = None,
 ) -> SurfaceNetwork:
     """Integral paths from every saddle of every shape, traced together.
 
@@ -162,6 +163,8 @@ def trace_surface_network(
         options: path settings.
         region: optional region (the design region E): anchors (last points inside the shape)
             must also lie in it.
+        sources: optional ``(m,)`` bool over the vertices: only the saddles marked are traced
+            from (None: every saddle). Every vertex still ends the paths that reach it.
 
     Returns:
         :class:`SurfaceNetwork`.
@@ -171,7 +174,10 @@ def trace_surface_network(
     h = cell_size(box, grid)
     dev, dt = points.x.device, points.x.dtype
     kind_index = points.index
-    sad = torch.nonzero((kind_index > 0) & (kind_index < d), as_tuple=False).squeeze(-1)
+    is_saddle = (kind_index > 0) & (kind_index < d)
+    if sources is not None:
+        is_saddle = is_saddle & sources.to(is_saddle.device)
+    sad = torch.nonzero(is_saddle, as_tuple=False).squeeze(-1)
     if sad.numel() == 0:
         return SurfaceNetwork.empty(points)
     # start points: saddle x eigenvector x sign
