@@ -80,6 +80,12 @@ CASES = {
     "fractional hole count": (lambda r, t: (t / "h.yaml").write_text(
         "name: a\ngeometry: {dim: 2, domain: {lo: [0, 0], hi: [1, 1]}}\ntopology: {holes: 1.5}\n")
         and ["train", t / "h.yaml"], "spec field 'topology.holes'"),
+    "fewer holes than the interfaces force": (lambda r, t: (t / "h.yaml").write_text(
+        "name: a\ngeometry: {dim: 2, domain: {lo: [-1, -1], hi: [1, 1]}, design_region: {type: difference, children: "
+        "[{type: rectangle, lo: [-0.9, -0.9], hi: [0.9, 0.9]}, {type: disk, center: [-0.5, 0], radius: 0.1}, "
+        "{type: disk, center: [0.5, 0], radius: 0.1}]}, interfaces: [{type: circle, center: [-0.5, 0], radius: 0.1}, "
+        "{type: circle, center: [0.5, 0], radius: 0.1}]}\ntopology: {holes: 1}\n")
+        and ["train", t / "h.yaml"], "spec field 'topology.holes': 1 is fewer than the 2 holes"),
     "tunnels in 2D": (lambda r, t: (t / "h.yaml").write_text(
         "name: a\ngeometry: {dim: 2, domain: {lo: [0, 0], hi: [1, 1]}}\ntopology: {tunnels: 1}\n")
         and ["train", t / "h.yaml"], "spec field 'topology.tunnels': a 3D target"),

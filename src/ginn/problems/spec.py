@@ -23,6 +23,7 @@ from ..geometry import csg
 from ..geometry.base import Box
 from ..geometry.symmetry import Mirror, Rotation, Symmetry
 from .derived import derived_defaults, half_longest_side
+from .forced import forced_holes
 from .interfaces import INTERFACE_TYPES, InterfaceSpec
 from .nodes import Dir3, Direction, Node, NonNegative, Point, Positive, check_lo_hi, spec_dim
 from .problem import Problem, Tolerances, Topology
@@ -307,6 +308,12 @@ class ProblemSpec(BaseModel):
         unit_scale = float(g.unit_scale) if g.unit_scale is not None else half_longest_side(domain)
         if symmetry is not None:
             check_symmetric(symmetry, domain, design, faces, self.tolerances.interface * unit_scale)
+        if dim == 2 and self.topology.holes is not None:
+            forced = forced_holes(domain, design, faces)
+            if self.topology.holes < len(forced):
+                which = ", ".join(f"interfaces[{i}]" for i in forced)
+                raise SpecError(f"spec field 'topology.holes': {self.topology.holes} is fewer than the {len(forced)} holes "
+                                f"every shape has round the parts of X \\ E inside its interface circles ({which})")
         return Problem(
             name=self.name,
             domain=domain,
