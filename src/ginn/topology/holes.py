@@ -23,13 +23,14 @@ grid: a feature must be wider than the grid to be seen, a gap too):
   features than are missing (a solid part has none: its field has no interior maximum), the rest
   are opened at the centres of the largest disjoint balls inscribed in ``{f <= -m}``: the deepest
   node, then the deepest node whose ball (radius ``-f``) is disjoint from the balls already chosen,
-  and so on; ``f`` there goes up to ``+m`` (cost ``m - f``) and the nodes ``2 m`` to ``3 m`` from
-  it go down to ``-m`` (:func:`ring_cells`): a hole of width about ``2 m`` in a wall a cell's
-  diagonal thick, the most material round it, and where the part is thinner than that the wall
-  thickens it instead of the raised node cutting it in two. A seed stays where it was put
-  while its node is still inside the shape (``f < 0``) and its shape still misses features: the
-  push makes that node shallower, so choosing the deepest node afresh at every recomputation
-  would move the seed away from the dent it has started and no hole would ever open. A tunnel
+  and so on; ``f`` there goes up to ``+m`` (cost ``m - f``) and the nodes ``2 m`` to
+  ``(2 + sqrt(d)) m`` from it go down to ``-m`` (:func:`ring_cells`): a hole of width about
+  ``2 m`` in a wall a cell's diagonal thick, the most material round it, and where the part is
+  thinner than that the wall thickens it instead of the raised node cutting it in two. A seed
+  stays where it was put while its node is still inside the shape (``f < 0``) and its shape still
+  misses features: the push makes that node shallower, so choosing the deepest node afresh at
+  every recomputation would move the seed away from the dent it has started and no hole would
+  ever open. A tunnel
   in 3D (``k = 1 < d - 1``) needs a passage through the part, not a point: every node on the
   line through the centre toward the nearest point outside the shape, both ways until
   ``f >= m``, goes up to ``+m`` (:func:`pierce_cells`; through a plate this is its normal, the
