@@ -86,6 +86,12 @@ CASES = {
         "{type: disk, center: [0.5, 0], radius: 0.1}]}, interfaces: [{type: circle, center: [-0.5, 0], radius: 0.1}, "
         "{type: circle, center: [0.5, 0], radius: 0.1}]}\ntopology: {holes: 1}\n")
         and ["train", t / "h.yaml"], "spec field 'topology.holes': 1 is fewer than the 2 holes"),
+    "fewer tunnels than the interfaces force": (lambda r, t: (t / "h.yaml").write_text(
+        "name: a\ngeometry: {dim: 3, domain: {lo: [-1, -1, -1], hi: [1, 1, 1]}, design_region: {type: difference, "
+        "children: [{type: box, lo: [-0.8, -0.8, -0.3], hi: [0.8, 0.8, 0.3]}, {type: cylinder, center: [0, 0, 0], "
+        "axis: [0, 0, 1], radius: 0.1, length: 2.5}]}, interfaces: [{type: cylinder_wall, center: [0, 0, 0], "
+        "axis: [0, 0, 1], radius: 0.1, length: 0.6}]}\ntopology: {tunnels: 0}\n")
+        and ["train", t / "h.yaml"], "spec field 'topology.tunnels': 0 is fewer than the 1 tunnel every shape has"),
     "tunnels in 2D": (lambda r, t: (t / "h.yaml").write_text(
         "name: a\ngeometry: {dim: 2, domain: {lo: [0, 0], hi: [1, 1]}}\ntopology: {tunnels: 1}\n")
         and ["train", t / "h.yaml"], "spec field 'topology.tunnels': a 3D target"),

@@ -7,6 +7,11 @@ number bounds ``topology.holes`` from below. Parts of X \\ E are found on a node
 (diagonal neighbours joined, as the complement of a shape is counted by
 :func:`ginn.topology.betti_numbers`); a part counts when it does not reach the domain's edge and
 lies within its circle (to a cell's diagonal).
+
+In 3D, an interface cylinder wall whose axis line crosses the whole domain outside E (a bolt hole
+through the part, open above and below) is a channel every feasible shape surrounds: a tunnel.
+Walls on lines that come within the sum of their radii of each other count once (a loop round
+one channel could be slid to the other), so the count bounds ``topology.tunnels`` from below.
 """
 
 from __future__ import annotations
@@ -19,9 +24,9 @@ from scipy import ndimage
 
 from ..extract.grid import node_grid
 from ..geometry.base import Box, Interface, Region
-from ..geometry.interfaces import Circle
+from ..geometry.interfaces import Circle, CylinderWall, InterfaceUnion
 
-__all__ = ["forced_holes"]
+__all__ = ["forced_holes", "forced_tunnels"]
 
 
 def forced_holes(domain: Box, design: Region | None, interfaces: Sequence[Interface],
@@ -58,3 +63,74 @@ def forced_holes(domain: Box, design: Region | None, interfaces: Sequence[Interf
         if reach <= c.radius + float(np.linalg.norm(spacing)):
             found[part] = i
     return sorted(found.values())
+
+
+def _walls(interfaces: Sequence[Interface]) -> list[tuple[int, CylinderWall]]:
+    """The cylinder walls among ``interfaces`` (inside unions too), with the index of the spec
+    interface each belongs to."""
+    out = []
+
+    def visit(i: int, f: Interface) -> None:
+        if isinstance(f, CylinderWall):
+            out.append((i, f))
+        elif isinstance(f, InterfaceUnion):
+            for part in f.parts:
+                visit(i, part)
+
+    for i, f in enumerate(interfaces):
+        visit(i, f)
+    return out
+
+
+def _line_gap(a: CylinderWall, b: CylinderWall) -> float:
+    """The distance between the two walls' axis lines."""
+    n = torch.linalg.cross(a.axis, b.axis)
+    w = b.center - a.center
+    if float(n.norm()) < 1e-9:  # parallel
+        return float((w - (w @ a.axis) * a.axis).norm())
+    return float((w @ n).abs() / n.norm())
+
+
+def forced_tunnels(domain: Box, design: Region | None, interfaces: Sequence[Interface],
+                   resolution: int = 128) -> list[int]:
+    """The interfaces that force a tunnel, one per tunnel (3D): indices into ``interfaces``.
+
+    Arguments:
+        domain: X (3D); design: E with the obstacles removed (None: no tunnel is forced).
+        interfaces: the problem's interfaces, in spec order (cylinder walls are looked for inside
+            groups too).
+        resolution: points per longest side of the domain along each axis line.
+
+    Returns:
+        for each channel (walls whose lines meet, merged), the first interface it comes from (sorted).
+    """
+    walls = _walls(interfaces)
+    if design is None or domain.dim != 3 or not walls:
+        return []
+    lo, hi = domain.tensors(dtype=torch.float64)
+    step = float((hi - lo).max()) / resolution
+    reach = float((hi - lo).norm())
+    t = torch.arange(-reach, reach + step, step, dtype=torch.float64)
+    through = []
+    for i, w in walls:
+        line = w.center + t[:, None] * w.axis
+        line = line[((line >= lo) & (line <= hi)).all(-1)]
+        through.append(len(line) > 0 and not bool(design.contains(line).any()))
+    # channels: union-find over the walls whose lines come within the sum of their radii
+    root = list(range(len(walls)))
+
+    def find(a: int) -> int:
+        while root[a] != a:
+            root[a] = root[root[a]]
+            a = root[a]
+        return a
+
+    for a in range(len(walls)):
+        for b in range(a + 1, len(walls)):
+            if _line_gap(walls[a][1], walls[b][1]) < walls[a][1].radius + walls[b][1].radius:
+                root[find(a)] = find(b)
+    channels: dict[int, list[int]] = {}
+    for a in range(len(walls)):
+        channels.setdefault(find(a), []).append(a)
+    return sorted(min(walls[a][0] for a in members) for members in channels.values()
+                  if all(through[a] for a in members))

@@ -23,7 +23,7 @@ from ..geometry import csg
 from ..geometry.base import Box
 from ..geometry.symmetry import Mirror, Rotation, Symmetry
 from .derived import derived_defaults, half_longest_side
-from .forced import forced_holes
+from .forced import forced_holes, forced_tunnels
 from .interfaces import INTERFACE_TYPES, InterfaceSpec
 from .nodes import Dir3, Direction, Node, NonNegative, Point, Positive, check_lo_hi, spec_dim
 from .problem import Problem, Tolerances, Topology
@@ -309,11 +309,11 @@ class ProblemSpec(BaseModel):
         if symmetry is not None:
             check_symmetric(symmetry, domain, design, faces, self.tolerances.interface * unit_scale)
         if dim == 2 and self.topology.holes is not None:
-            forced = forced_holes(domain, design, faces)
-            if self.topology.holes < len(forced):
-                which = ", ".join(f"interfaces[{i}]" for i in forced)
-                raise SpecError(f"spec field 'topology.holes': {self.topology.holes} is fewer than the {len(forced)} holes "
-                                f"every shape has round the parts of X \\ E inside its interface circles ({which})")
+            _refuse_below(self.topology.holes, forced_holes(domain, design, faces), "holes", "hole",
+                          "round the parts of X \\ E inside its interface circles")
+        if dim == 3 and self.topology.tunnels is not None:
+            _refuse_below(self.topology.tunnels, forced_tunnels(domain, design, faces), "tunnels", "tunnel",
+                          "round the channels through X \\ E inside its interface cylinder walls")
         return Problem(
             name=self.name,
             domain=domain,
@@ -330,6 +330,15 @@ class ProblemSpec(BaseModel):
             reference=self.reference,
             extra={"kind": self.kind, "source": self._source},
         )
+
+
+def _refuse_below(target: int, forced: list[int], key: str, noun: str, why: str) -> None:
+    """A one-line SpecError when ``target`` is below the features the interfaces ``forced`` make."""
+    if target < len(forced):
+        n = len(forced)
+        which = ", ".join(f"interfaces[{i}]" for i in forced)
+        raise SpecError(f"spec field 'topology.{key}': {target} is fewer than the {n} {noun}{'' if n == 1 else 's'} "
+                        f"every shape has {why} ({which})")
 
 
 def _fmt(t) -> str:
