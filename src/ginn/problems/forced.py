@@ -20,9 +20,10 @@ from collections.abc import Sequence
 
 import numpy as np
 import torch
-from scipy import ndimage
+from scipy import sparse
+from scipy.sparse import csgraph
 
-from ..extract.grid import node_grid
+from ..extract.grid import label_components, node_grid
 from ..geometry.base import Box, Interface, Region
 from ..geometry.interfaces import Circle, CylinderWall, InterfaceUnion
 
@@ -47,20 +48,18 @@ def forced_holes(domain: Box, design: Region | None, interfaces: Sequence[Interf
     grid = node_grid(domain, resolution)
     pts = grid.tensor_points(dtype=torch.float64)
     outside = ~design.contains(pts).reshape(grid.shape).cpu().numpy().astype(bool)
-    labels, _ = ndimage.label(outside, structure=np.ones((3, 3), dtype=bool))
+    labels, _ = label_components(outside, connectivity=2)
     edge = np.unique(np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]]))
-    lo = np.asarray(domain.lo, dtype=np.float64)
-    spacing = (np.asarray(domain.hi, dtype=np.float64) - lo) / (np.asarray(grid.shape) - 1)
     nodes = pts.cpu().numpy().reshape(*grid.shape, 2)
     found: dict[int, int] = {}
     for i, c in circles:
         centre = np.asarray(c.center, dtype=np.float64)
-        at = tuple(np.clip(np.rint((centre - lo) / spacing).astype(np.int64), 0, np.asarray(grid.shape) - 1))
-        part = int(labels[at])
+        at = np.clip(np.rint(grid.to_index(centre[None])[0]).astype(np.int64), 0, np.asarray(grid.shape) - 1)
+        part = int(labels[tuple(at)])
         if part == 0 or part in edge or part in found:
             continue
         reach = np.linalg.norm(nodes[labels == part] - centre, axis=1).max()
-        if reach <= c.radius + float(np.linalg.norm(spacing)):
+        if reach <= c.radius + float(np.linalg.norm(grid.spacing)):
             found[part] = i
     return sorted(found.values())
 
@@ -116,21 +115,10 @@ def forced_tunnels(domain: Box, design: Region | None, interfaces: Sequence[Inte
         line = w.center + t[:, None] * w.axis
         line = line[((line >= lo) & (line <= hi)).all(-1)]
         through.append(len(line) > 0 and not bool(design.contains(line).any()))
-    # channels: union-find over the walls whose lines come within the sum of their radii
-    root = list(range(len(walls)))
-
-    def find(a: int) -> int:
-        while root[a] != a:
-            root[a] = root[root[a]]
-            a = root[a]
-        return a
-
-    for a in range(len(walls)):
-        for b in range(a + 1, len(walls)):
-            if _line_gap(walls[a][1], walls[b][1]) < walls[a][1].radius + walls[b][1].radius:
-                root[find(a)] = find(b)
-    channels: dict[int, list[int]] = {}
-    for a in range(len(walls)):
-        channels.setdefault(find(a), []).append(a)
-    return sorted(min(walls[a][0] for a in members) for members in channels.values()
-                  if all(through[a] for a in members))
+    # channels: the components of the graph joining walls whose lines come within the sum of their radii
+    n = len(walls)
+    near = np.array([[_line_gap(a, b) < a.radius + b.radius for _, b in walls] for _, a in walls])
+    _, channel = csgraph.connected_components(sparse.csr_matrix(near), directed=False)
+    first = [i for i, _ in walls]
+    return sorted(min(first[a] for a in range(n) if channel[a] == c) for c in np.unique(channel)
+                  if all(through[a] for a in range(n) if channel[a] == c))

@@ -30,9 +30,8 @@ grid: a feature must be wider than the grid to be seen, a gap too):
   stays where it was put while its node is still inside the shape (``f < 0``) and its shape still
   misses features: the push makes that node shallower, so choosing the deepest node afresh at
   every recomputation would move the seed away from the dent it has started and no hole would
-  ever open. A tunnel
-  in 3D (``k = 1 < d - 1``) needs a passage through the part, not a point: every node on the
-  line through the centre toward the nearest point outside the shape, both ways until
+  ever open. A tunnel in 3D (``k = 1 < d - 1``) needs a passage through the part, not a point:
+  every node on the line through the centre toward the nearest point outside the shape, both ways until
   ``f >= m``, goes up to ``+m`` (:func:`pierce_cells`; through a plate this is its normal, the
   shortest way through);
 * **kept**: the other features alive at 0 are held with ``b <= -m`` and ``d >= m``.
