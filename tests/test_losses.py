@@ -87,6 +87,31 @@ def test_projection_lands_on_circle(gen):
     assert (proj.x.norm(dim=-1) - r).abs().max() < 1e-5
 
 
+def test_projection_settled_points_stop_moving(gen):
+    """With ``settle`` a point stops after a step shorter than it: the result stays within about
+    the square of that length of the full projection, and the later steps evaluate only the
+    points still moving (here the ones started far from the circle)."""
+    r = 0.37
+    sizes = []
+
+    def f(x):
+        sizes.append(x.shape[0])
+        return x.norm(dim=-1) ** 2 - r**2
+
+    fld = as_field(f)
+    near = torch.nn.functional.normalize(torch.randn(500, 2, dtype=D, generator=gen), dim=-1) * (r + 1e-3)
+    far = torch.nn.functional.normalize(torch.randn(500, 2, dtype=D, generator=gen), dim=-1) * 0.9
+    x0 = torch.cat([near, far])
+    full = project_to_zero(fld, x0, steps=8, tol=1e-5)
+    sizes.clear()
+    settled = project_to_zero(fld, x0, steps=8, tol=1e-5, settle=1e-3)
+    assert settled.n_converged == full.n_converged == 1000
+    assert (settled.x - full.x).norm(dim=-1).max() < 1e-5
+    # the near points settle after two steps, the far ones need more: later passes are smaller
+    assert sizes[0] == 1000 and sizes[2] == 500 and min(sizes[:-1]) > 0
+    assert sum(sizes[:-1]) < 8 * 1000 * 0.6
+
+
 def test_projection_reports_failures(gen):
     fld = as_field(lambda x: x.norm(dim=-1) - 0.5)
     x0 = torch.rand(100, 2, dtype=D, generator=gen) * 2 - 1

@@ -49,6 +49,7 @@ def project_to_zero(
     tol: float = 1e-4,
     max_step: float | None = None,
     bounds: tuple[Tensor, Tensor] | None = None,
+    settle: float | None = None,
 ) -> Projection:
     """Move points onto ``{f = 0}`` with Newton steps ``x <- x - f grad f / |grad f|^2``.
 
@@ -59,19 +60,33 @@ def project_to_zero(
         tol: a point has converged when ``|f| <= tol``.
         max_step: optional cap on the length of one step (damping far from the surface).
         bounds: optional ``(lo, hi)`` box; points leaving it are marked not converged.
+        settle: optional length: a point whose step was shorter than this takes no further steps
+            (Newton's next step would be of the order of the square of this one), so that the
+            later steps evaluate only the points still moving.
 
     Returns:
         :class:`Projection` (no graph is kept; re-evaluate the field at ``x`` for a loss).
     """
     x = x.detach().clone()
+    moving = None  # (q,) indices of the points still moving; None: all of them
     for _ in range(steps):
-        v = evaluate(field, x, z, grad=True, create_graph=False)
+        xm = x if moving is None else x[moving]
+        zm = z if moving is None or z is None else z[moving]
+        v = evaluate(field, xm, zm, grad=True, create_graph=False)
         g2 = (v.grad * v.grad).sum(-1).clamp_min(1e-12)
         step = (v.f / g2)[:, None] * v.grad
         if max_step is not None:
             ln = step.norm(dim=-1, keepdim=True)
             step = step * (max_step / ln.clamp_min(max_step))
-        x = x - step
+        if moving is None:
+            x = x - step
+        else:
+            x[moving] = xm - step
+        if settle is not None:
+            still = step.norm(dim=-1) >= settle
+            moving = torch.nonzero(still).squeeze(-1) if moving is None else moving[still]
+            if moving.numel() == 0:
+                break
     res = value(field, x, z).abs()
     ok = torch.isfinite(res) & (res <= tol) & torch.isfinite(x).all(dim=-1)
     if bounds is not None:
