@@ -10,15 +10,24 @@ alternating order (base first in even rounds), each in a fresh process with the 
 ``OMP_NUM_THREADS`` (``--threads``), and writes its run directory to a temporary folder;
 ``--this-extra`` adds arguments to this tree's command only (a setting the base does not know,
 e.g. turning off the feasibility checks, which cost a fixed time per check and would otherwise
-weigh on a short command). It prints
+weigh on a short command), ``--base-extra`` to the base's only (e.g. the preset that trained a
+problem there). It prints
 every pair's wall seconds and the ratio of this tree to the base, then the median of the ratios:
 pairing rounds keeps the figure true while the machine's speed drifts. Both sides pay the same
 start-up (imports, problem build), so a command of many iterations gives a step-cost ratio.
+For a training command it also prints each run's mean seconds per iteration (the training
+clock of its last logged iteration over that iteration's number, from ``metrics.jsonl``: the
+steps and the feasibility checks between them, without start-up and results) and their ratio,
+which compares runs of different lengths:
+
+    python benchmarks/against_commit.py --base aa29841 --runs 2 --threads 2 \\
+        --base-extra="--preset quick" -- train obstacle --no-results --quiet
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import shlex
 import statistics
@@ -29,6 +38,20 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
+
+
+def seconds_per_iteration(run_dir: Path) -> float | None:
+    """Training seconds per iteration of a run directory: the clock of its last logged iteration
+    over that iteration's number (None without a training log)."""
+    log = run_dir / "metrics.jsonl"
+    if not log.is_file():
+        return None
+    last = None
+    for line in log.read_text().splitlines():
+        row = json.loads(line)
+        if "time" in row and row.get("step", 0) > 0:
+            last = row
+    return None if last is None else last["time"] / last["step"]
 
 
 def run_once(src: Path, args: list[str], out: Path, threads: int) -> float:
@@ -49,6 +72,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--runs", type=int, default=3, help="rounds (one run of each side per round)")
     parser.add_argument("--threads", type=int, default=1, help="torch threads of every run")
     parser.add_argument("--this-extra", default="", help="arguments added to this tree's command only (one string)")
+    parser.add_argument("--base-extra", default="", help="arguments added to the base's command only (one string)")
     parser.add_argument("command", nargs=argparse.REMAINDER, help="-- then the ginn command (without --out)")
     a = parser.parse_args(argv)
     command = a.command[1:] if a.command[:1] == ["--"] else a.command
@@ -59,17 +83,28 @@ def main(argv: list[str] | None = None) -> int:
         subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", "-q", str(base_tree), a.base], check=True)
         try:
             sides = {"base": base_tree / "src", "this": ROOT / "src"}
-            commands = {"base": command, "this": command + shlex.split(a.this_extra)}
-            ratios = []
-            print(f"ginn {' '.join(command)}  ({a.threads} thread(s), base {a.base}; this tree adds {a.this_extra!r})")
+            commands = {"base": command + shlex.split(a.base_extra), "this": command + shlex.split(a.this_extra)}
+            ratios, step_ratios = [], []
+            print(f"ginn {' '.join(command)}  ({a.threads} thread(s), base {a.base} adds {a.base_extra!r}; "
+                  f"this tree adds {a.this_extra!r})")
             for r in range(a.runs):
                 order = ["base", "this"] if r % 2 == 0 else ["this", "base"]
-                secs = {}
+                secs, per_it = {}, {}
                 for side in order:
-                    secs[side] = run_once(sides[side], commands[side], Path(tmp) / f"run-{side}-{r}", a.threads)
+                    out = Path(tmp) / f"run-{side}-{r}"
+                    secs[side] = run_once(sides[side], commands[side], out, a.threads)
+                    per_it[side] = seconds_per_iteration(out)
                 ratios.append(secs["this"] / secs["base"])
-                print(f"round {r}: base {secs['base']:.1f} s, this {secs['this']:.1f} s, ratio {ratios[-1]:.3f}", flush=True)
+                line = f"round {r}: base {secs['base']:.1f} s, this {secs['this']:.1f} s, ratio {ratios[-1]:.3f}"
+                if per_it["base"] and per_it["this"]:
+                    step_ratios.append(per_it["this"] / per_it["base"])
+                    line += (f"; s / iteration base {per_it['base']:.4f}, this {per_it['this']:.4f}, "
+                             f"ratio {step_ratios[-1]:.3f}")
+                print(line, flush=True)
             print(f"median ratio this/base: {statistics.median(ratios):.3f} (min {min(ratios):.3f}, max {max(ratios):.3f})")
+            if step_ratios:
+                print(f"median ratio of s / iteration: {statistics.median(step_ratios):.3f} "
+                      f"(min {min(step_ratios):.3f}, max {max(step_ratios):.3f})")
         finally:
             subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(base_tree)], check=False)
     return 0
