@@ -656,6 +656,23 @@ def test_surface_network_is_the_same_with_the_region_lookup():
     assert np.isfinite(a.path_anchor).any()
 
 
+def test_anchor_is_each_paths_last_candidate_in_the_region():
+    """Anchors are resolved after the tracing from the candidates in the order they were reached:
+    the last one inside the region per path, NaN for a path with none."""
+    from ginn.geometry import Rectangle
+    from ginn.topology.surface_network import _last_inside
+
+    left = Rectangle((-1.0, -1.0), (0.0, 1.0))  # x <= 0
+    path = torch.tensor([0, 1, 0, 2, 0, 1])
+    x = torch.tensor([[-0.5, 0.0], [-0.2, 0.1], [-0.1, 0.3], [0.4, 0.0], [0.3, 0.2], [-0.6, -0.4]], dtype=DT)
+    a = _last_inside(path, x, 4, left)
+    # path 0: candidates 0, 2 (inside) and 4 (outside) -> 2; path 1: 1 and 5 -> 5; path 2: only 3 (outside)
+    assert torch.equal(a[0], x[2]) and torch.equal(a[1], x[5])
+    assert torch.isnan(a[2]).all() and torch.isnan(a[3]).all()
+    b = _last_inside(path, x, 4, None)  # no region: every candidate counts
+    assert torch.equal(b[0], x[4]) and torch.equal(b[2], x[3])
+
+
 def test_paths_are_traced_only_from_saddles_in_E_with_the_same_penalties():
     """Paths from a saddle outside E join nothing (shape_components, saddle_penalties): tracing
     from the saddles in E alone gives exactly the other paths, the same components and penalties."""

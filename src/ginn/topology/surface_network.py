@@ -207,9 +207,9 @@ def trace_surface_network(
     f_prev = f0.clone()
     prev_pos = points.x[start_vertex].clone()
     alive = torch.ones(P, dtype=torch.bool, device=dev)
-    anchor = torch.full((P, d), float("nan"), device=dev, dtype=dt)
-    s_in = _inside(f0 <= 0, region, prev_pos)
-    anchor[s_in] = prev_pos[s_in]
+    # anchor candidates (points inside the shape and the box), in the order they were reached;
+    # which of them lie in the region is asked once, after the tracing
+    cand_path, cand_x = [torch.nonzero(f0 <= 0).squeeze(-1)], [prev_pos[f0 <= 0]]
     # the first segment (saddle -> start point)
     seg = (pos - prev_pos).norm(dim=-1)
     cap, hmin, hmax = options.capture * h, options.h_min * h, options.h_max * h
@@ -227,8 +227,9 @@ def trace_surface_network(
         length[idx] += seg[idx]
         out_len[idx] += seg[idx] * frac_out
         f_prev[idx] = f
-        now_in = _inside((f <= 0) & ((p >= lo) & (p <= hi)).all(-1), region, p)
-        anchor[idx[now_in]] = p[now_in]
+        now_in = (f <= 0) & ((p >= lo) & (p <= hi)).all(-1)
+        cand_path.append(idx[now_in])
+        cand_x.append(p[now_in])
         # capture
         dist = (p[:, None, :] - Xv[shape[idx]]).norm(dim=-1)  # (n, M)
         dist = torch.where(reach[idx], dist, torch.full_like(dist, float("inf")))
@@ -258,6 +259,7 @@ def trace_surface_network(
         u_prev[gi] = u[go]
         seg[gi] = step
         pos[gi] = new
+    anchor = _last_inside(torch.cat(cand_path), torch.cat(cand_x), P, region)
     return SurfaceNetwork(
         points,
         start_vertex.cpu().numpy().astype(np.int64),
@@ -279,10 +281,23 @@ def _fraction_positive(fa: Tensor, fb: Tensor) -> Tensor:
     return torch.where(both, torch.ones_like(fa), torch.where(none, torch.zeros_like(fa), mixed))
 
 
-def _inside(candidate: Tensor, region: Region | None, x: Tensor) -> Tensor:
-    """``candidate`` narrowed to the points of ``x (n, d)`` inside ``region`` (only candidates are asked)."""
-    if region is None or not bool(candidate.any()):
-        return candidate
-    out = candidate.clone()
-    out[candidate] = region.contains(x[candidate]).to(x.device)
-    return out
+def _last_inside(path: Tensor, x: Tensor, P: int, region: Region | None) -> Tensor:
+    """Each path's last candidate point inside ``region``, ``(P, d)`` (NaN rows for none).
+
+    Arguments:
+        path: the path of each candidate ``(c,)``, candidates in the order they were reached.
+        x: the candidates ``(c, d)``.
+        P: number of paths.
+        region: the region (None: every candidate counts).
+    """
+    anchor = x.new_full((P, x.shape[1]), float("nan"))
+    if region is not None and path.numel() > 0:
+        keep = region.contains(x).to(x.device)
+        path, x = path[keep], x[keep]
+    if path.numel() == 0:
+        return anchor
+    order = torch.arange(path.numel(), device=path.device)
+    last = torch.full((P,), -1, dtype=torch.long, device=path.device).scatter_reduce(0, path, order, "amax")
+    has = last >= 0
+    anchor[has] = x[last[has]]
+    return anchor
