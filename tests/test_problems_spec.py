@@ -33,6 +33,20 @@ def test_list_and_show_builtins():
             assert s.config(p).preset == p
 
 
+def test_builtin_name_beside_a_directory_of_that_name(tmp_path, monkeypatch):
+    """A directory is never a spec: in a folder holding a run directory named ``obstacle`` the name
+    still means the built-in problem; a directory of any other name is refused in one line."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "obstacle").mkdir()
+    (tmp_path / "runs").mkdir()
+    assert load_spec("obstacle").name == "obstacle"
+    assert spec_text("obstacle") == spec_text(REPO / "src" / "ginn" / "problems" / "presets" / "obstacle.yaml")
+    with pytest.raises(SpecError, match="spec runs: is a directory"):
+        load_spec("runs")
+    with pytest.raises(SpecError, match="is a directory"):
+        load_spec(tmp_path / "obstacle")  # a path, not a bare name
+
+
 def test_obstacle_is_appendix_a4(gen):
     spec = load_spec("obstacle")
     p = spec.build()

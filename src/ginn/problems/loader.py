@@ -39,8 +39,13 @@ def spec_text(path_or_name: str | Path) -> str:
 
 
 def _locate(path_or_name: str | Path) -> Path:
+    """The spec file: a path to a YAML file, or a built-in problem's by name. A directory is never
+    a spec, so a bare built-in name that also names a directory here (e.g. a run directory written
+    with ``--out obstacle``) is the built-in problem."""
     p = Path(path_or_name).expanduser()
     if p.is_dir():
+        if len(Path(path_or_name).parts) == 1 and str(path_or_name) in list_problems():
+            return builtin_path(str(path_or_name))
         raise SpecError(f"spec {p}: is a directory, not a YAML spec file")
     if p.suffix.lower() in (".yaml", ".yml") or p.is_file() or len(p.parts) > 1:
         if not p.is_file():
