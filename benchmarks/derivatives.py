@@ -13,10 +13,15 @@ the weights, one Adam step.
   same weights but with the SIREN's sine swapped for plain ``torch.sin`` (what the authors' code
   uses; our custom sine is an engine-side optimisation and would only slow vmap down).
 
+* with ``--compile``: the engine with the SIREN's value-and-gradient pass and its backward as
+  torch.compile kernels (``ginn.models.compile_derivatives``), timed in the same turns; the
+  compiling happens before the timing.
+
 The last line prints the speed ratio and the engine's achieved GFLOP/s (matmul FLOPs counted by
 the torch profiler) as a share of this machine's measured float32 matmul peak.
 
 Usage: python benchmarks/derivatives.py [--points 20000] [--hessian-points 2000] [--repeats 5]
+       [--width 256] [--dim 3] [--compile]
 """
 
 from __future__ import annotations
@@ -31,7 +36,7 @@ from torch.func import functional_call, jacrev, vmap
 from torch.profiler import ProfilerActivity, profile
 
 from ginn import fields
-from ginn.models import Siren
+from ginn.models import Siren, compile_derivatives
 from ginn.models import siren as siren_module
 
 
@@ -63,6 +68,14 @@ def engine_loss(model, x, hidx, fast=True):
     return (v.grad.norm(dim=-1) - 1).pow(2).mean() + v.f.pow(2).mean() + div.pow(2).mean()
 
 
+def engine_compiled_loss(model, x, hidx):
+    compile_derivatives(model, True)
+    try:
+        return engine_loss(model, x, hidx)
+    finally:
+        compile_derivatives(model, False)
+
+
 def engine_autograd_loss(model, x, hidx):
     return engine_loss(model, x, hidx, fast=False)
 
@@ -91,7 +104,7 @@ def time_steps(loss_fns, model, x, hidx, repeats):
             t = time.perf_counter()
             opt.zero_grad()
             loss = loss_fn(model, x, hidx)
-            loss.backward()
+            loss.backward()  # the compiled backward runs here: its kernels were chosen in the forward
             opt.step()
             if i > 0:  # the first round warms up
                 times[k].append(time.perf_counter() - t)
@@ -104,12 +117,15 @@ def main() -> None:
     ap.add_argument("--hessian-points", type=int, default=2000)
     ap.add_argument("--repeats", type=int, default=7)
     ap.add_argument("--threads", type=int, default=0)
+    ap.add_argument("--width", type=int, default=256, help="SIREN width (4 hidden layers)")
+    ap.add_argument("--dim", type=int, default=3, help="point dimension")
+    ap.add_argument("--compile", action="store_true", help="also time the engine with compiled SIREN kernels")
     a = ap.parse_args()
     if a.threads:
         torch.set_num_threads(a.threads)
     torch.manual_seed(0)
-    model = Siren(3, [256] * 4, w0_first=8.0)
-    x = torch.rand(a.points, 3) * 2 - 1
+    model = Siren(a.dim, [a.width] * 4, w0_first=8.0)
+    x = torch.rand(a.points, a.dim) * 2 - 1
     hidx = torch.randperm(a.points)[: a.hessian_points]
 
     # same numbers from both (sanity)
@@ -129,9 +145,12 @@ def main() -> None:
         with plain_sine():
             return baseline_loss(model, x, hidx)
 
-    t_engine, t_autograd, t_base = time_steps(
-        [engine_loss, engine_autograd_loss, baseline_plain_sine], model, x, hidx, a.repeats
-    )
+    fns = [engine_loss, engine_autograd_loss, baseline_plain_sine]
+    if a.compile:
+        engine_compiled_loss(model, x, hidx).backward()  # compile before timing
+        model.zero_grad()
+        fns.append(engine_compiled_loss)
+    t_engine, t_autograd, t_base, *t_compiled = time_steps(fns, model, x, hidx, a.repeats)
     gflops = flops / t_engine / 1e9
     print(f"threads: {torch.get_num_threads()}  matmul peak: {peak:.1f} GFLOP/s")
     print(f"engine   : {t_engine:.3f} s/step  ({flops / 1e9:.1f} GFLOP counted, {gflops:.1f} GFLOP/s)")
@@ -139,6 +158,9 @@ def main() -> None:
     print(f"torch.func baseline: {t_base:.3f} s/step")
     print(f"speedup engine vs torch.func: {t_base / t_engine:.2f}x; "
           f"engine at {gflops:.1f} GFLOP/s = {100 * gflops / peak:.0f}% of measured matmul peak")
+    if t_compiled:
+        print(f"engine with compiled SIREN kernels: {t_compiled[0]:.3f} s/step, "
+              f"{t_compiled[0] / t_engine:.2f} of the eager engine's")
 
 
 if __name__ == "__main__":

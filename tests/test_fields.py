@@ -222,7 +222,59 @@ def test_siren_fast_path_gradcheck(gen):
     for a, b in zip(sizes[:-1], sizes[1:]):
         params += [torch.randn(b, a, dtype=D, requires_grad=True), torch.randn(b, dtype=D, requires_grad=True)]
     params += [torch.randn(1, sizes[-1], dtype=D, requires_grad=True), torch.randn(1, dtype=D, requires_grad=True)]
-    assert torch.autograd.gradcheck(lambda h, *p: _SirenValueGrad.apply(h, 3, *p), (h0, *params))
+    assert torch.autograd.gradcheck(lambda h, *p: _SirenValueGrad.apply(h, 3, False, *p), (h0, *params))
+
+
+def _fast_path_numbers(net, x, z):
+    """f, grad f and the parameter gradients of a loss of both, by the SIREN's fast path."""
+    v = evaluate(net, x, z, create_graph=True)
+    loss = (v.grad.norm(dim=-1) - 1).pow(2).sum() + v.f.pow(3).sum() + (v.f * v.grad[:, 1]).sum()
+    return [v.f.detach(), v.grad.detach(), *torch.autograd.grad(loss, list(net.parameters()))]
+
+
+def test_compiled_siren_kernels_equal_the_eager_ones(gen):
+    """``compile_derivatives`` runs the value-and-gradient pass and its backward as torch.compile
+    kernels: the same f, grad f and parameter gradients as the eager kernels (float64), also on
+    a second batch size; a wrapped SIREN is reached and switched back."""
+    from ginn.models import DomainFrame, Siren, compile_derivatives
+
+    torch.manual_seed(4)
+    net = Siren(2, [16, 16], latent_dim=1, w0_first=6.0).double()
+    wrapped = DomainFrame(net, [0.5, 0.0], 2.0)
+    for n in (33, 50):
+        x = torch.rand(n, 2, dtype=D, generator=gen) * 2 - 1
+        z = torch.rand(n, 1, dtype=D, generator=gen)
+        assert compile_derivatives(wrapped, False) == 1 and not net.compiled
+        eager = _fast_path_numbers(net, x, z)
+        assert compile_derivatives(wrapped, True) == 1 and net.compiled
+        compiled = _fast_path_numbers(net, x, z)
+        for a, b in zip(compiled, eager):
+            assert torch.allclose(a, b, rtol=1e-12, atol=1e-12)
+    compile_derivatives(wrapped, False)
+
+
+def test_compiled_siren_kernels_fall_back_when_compiling_fails(gen, monkeypatch):
+    """Where torch cannot compile (no C++ compiler, no Triton), the first call warns once and the
+    eager kernels give the numbers, for the rest of the process."""
+    from ginn.models import Siren, compile_derivatives, siren_grad
+
+    def broken(*args):
+        raise RuntimeError("no working C++ compiler found\nmore detail")
+
+    monkeypatch.setattr(siren_grad, "_compiled", (broken, broken))
+    monkeypatch.setattr(siren_grad, "_compile_failed", False)
+    torch.manual_seed(5)
+    net = Siren(2, [8, 8], latent_dim=1).double()
+    x = torch.rand(20, 2, dtype=D, generator=gen)
+    z = torch.rand(20, 1, dtype=D, generator=gen)
+    eager = _fast_path_numbers(net, x, z)
+    compile_derivatives(net, True)
+    with pytest.warns(UserWarning, match=r"torch.compile failed \(no working C\+\+ compiler found\)") as record:
+        first = _fast_path_numbers(net, x, z)
+        again = _fast_path_numbers(net, x, z)
+    assert len(record) == 1 and siren_grad._compile_failed
+    for a, b, c in zip(first, again, eager):
+        assert torch.equal(a, c) and torch.equal(b, c)
 
 
 def test_siren_without_fast_path_falls_back(gen):

@@ -229,6 +229,10 @@ class TrainingConfig(_Strict):
     max_rollbacks: int = Field(3, ge=0, description="give up (error) after this many rollbacks")
     dtype: Literal["float32", "float64"] = Field("float32", description="floating-point type of the model and the samples")
     threads: int = Field(0, ge=0, description="torch CPU threads (0: leave the default)")
+    compile: bool = Field(
+        True, description="compute a SIREN's value and input gradient in the training pass with torch.compile "
+        "kernels (the same numbers to rounding, 0.55-0.7 of the time; a few seconds of compiling at the start; "
+        "uncompiled, with a warning, where torch cannot compile)")
     feasibility_checks: int = Field(
         10, ge=0, description="shape problems: how many times per run (evenly spaced, and at the end) the shapes are "
         "checked against the problem's tolerances on a coarse grid; logged and shown in the progress bar (0: never)")

@@ -6,7 +6,7 @@ from .factory import build_model
 from .frame import DomainFrame
 from .latents import fixed_latents, latent_dim, midpoints, random_latents
 from .mlp import MLP, FourierFeatures, FourierMLP, ResMLP, make_activation
-from .siren import SineLayer, Siren
+from .siren import SineLayer, Siren, compile_derivatives
 from .symmetric import SymmetricField
 from .wire import Wire
 
@@ -27,6 +27,7 @@ __all__ = [
     "FourierFeatures",
     "make_activation",
     "build_model",
+    "compile_derivatives",
     "fixed_latents",
     "random_latents",
     "latent_dim",

@@ -130,6 +130,8 @@ class Siren(NeuralField):
             last.bias.uniform_(-bound, bound)
         layers.append(last)
         self.core = nn.Sequential(*layers)
+        #: run :meth:`value_and_grad` with the ``torch.compile`` kernels (:func:`compile_derivatives`)
+        self.compiled = False
 
     def value_and_grad(self, x: Tensor, z: Tensor | None = None) -> tuple[Tensor, Tensor] | None:
         """``f (n,)`` and ``grad_x f (n, d)`` by :func:`ginn.models.siren_grad.siren_value_and_grad`
@@ -152,7 +154,7 @@ class Siren(NeuralField):
             weights.append(W)
             biases.append(b)
         last = layers[-1]
-        return siren_value_and_grad(h0, self.in_dim, weights, biases, last.weight, last.bias)
+        return siren_value_and_grad(h0, self.in_dim, weights, biases, last.weight, last.bias, self.compiled)
 
     def preactivations(self, x: Tensor, z: Tensor | None = None) -> list[Tensor]:
         """Pre-activations of every sine layer, each ``(n, width)`` (for checking the init)."""
@@ -164,3 +166,15 @@ class Siren(NeuralField):
                 out.append(p)
                 h = torch.sin(p)
         return out
+
+
+def compile_derivatives(module: nn.Module, on: bool = True) -> int:
+    """Let every :class:`Siren` inside ``module`` (wrappers included) compute its value and input
+    gradient with the ``torch.compile`` kernels of :mod:`ginn.models.siren_grad` (``on``) or the
+    eager ones; returns how many SIRENs it set."""
+    n = 0
+    for m in module.modules():
+        if isinstance(m, Siren):
+            m.compiled = bool(on)
+            n += 1
+    return n

@@ -36,6 +36,7 @@ from torch import Tensor, nn
 from ..config import DTYPES, RunConfig, TrainingConfig
 from ..errors import ConfigError, GinnError
 from ..eval.feasibility import short_summary
+from ..models import compile_derivatives
 from .balancing import make_balancer
 from .checkpoint import load_checkpoint, rng_state, save_checkpoint, set_rng_state
 from .distributed import DistContext
@@ -182,6 +183,7 @@ class Trainer:
         torch.manual_seed(cfg.seed)
         self.gen = torch.Generator(device=self.device).manual_seed(cfg.seed)
         self.model = task.build_model().to(device=self.device, dtype=self.dtype)
+        compile_derivatives(self.model, cfg.training.compile)
         if dist is not None:
             task.distribute(dist)
             dist.broadcast_parameters(self.model)
