@@ -236,7 +236,7 @@ def test_compiled_siren_kernels_equal_the_eager_ones(gen):
     """``compile_derivatives`` runs the value-and-gradient pass and its backward as torch.compile
     kernels: the same f, grad f and parameter gradients as the eager kernels (float64), also on
     a second batch size; a wrapped SIREN is reached and switched back."""
-    from ginn.models import DomainFrame, Siren, compile_derivatives
+    from ginn.models import DomainFrame, Siren, compile_derivatives, siren_grad
 
     torch.manual_seed(4)
     net = Siren(2, [16, 16], latent_dim=1, w0_first=6.0).double()
@@ -248,6 +248,9 @@ def test_compiled_siren_kernels_equal_the_eager_ones(gen):
         eager = _fast_path_numbers(net, x, z)
         assert compile_derivatives(wrapped, True) == 1 and net.compiled
         compiled = _fast_path_numbers(net, x, z)
+        if siren_grad._compile_failed:  # warned; the next test covers what runs then
+            compile_derivatives(wrapped, False)
+            pytest.skip("torch cannot compile on this machine")
         for a, b in zip(compiled, eager):
             assert torch.allclose(a, b, rtol=1e-12, atol=1e-12)
     compile_derivatives(wrapped, False)
