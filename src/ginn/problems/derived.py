@@ -128,7 +128,7 @@ def derived_defaults(problem: Problem) -> tuple[dict, dict[str, str]]:
     training = {"iterations": iterations, "lr": 1e-3, "lr_decay": 0.5, "lr_decay_every": iterations // 3}
     note("training.iterations", f"the {d}D budget")
     if d == 2:
-        sampling = {"n_domain": 512, "n_outside": 512, "n_obstacle": 64, "n_interface": 128, "n_boundary": 128}
+        sampling = {"n_domain": 256, "n_outside": 512, "n_obstacle": 64, "n_interface": 128, "n_boundary": 128}
         note("sampling.n_domain", "uniform samples per shape: the eikonal term and the pool of the n_boundary surface "
                                   "samples (docs/results.md, 'Step cost')")
         conn = {"every": 5, "margin": 0.02 * s}
