@@ -18,7 +18,8 @@ start-up (imports, problem build), so a command of many iterations gives a step-
 For a training command it also prints each run's mean seconds per iteration (the training
 clock of its last logged iteration over that iteration's number, from ``metrics.jsonl``: the
 steps and the feasibility checks between them, without start-up and results) and their ratio,
-which compares runs of different lengths:
+which compares runs of different lengths, and the same from the end of the first iteration on
+(without what a run pays once when it starts training, such as compiling kernels):
 
     python benchmarks/against_commit.py --base aa29841 --runs 2 --threads 2 \\
         --base-extra="--preset quick" -- train obstacle --no-results --quiet
@@ -40,18 +41,27 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def seconds_per_iteration(run_dir: Path) -> float | None:
+def seconds_per_iteration(run_dir: Path, after_first: bool = False) -> float | None:
     """Training seconds per iteration of a run directory: the clock of its last logged iteration
-    over that iteration's number (None without a training log)."""
+    over that iteration's number; with ``after_first``, the clock from the end of iteration 0 on
+    over the iterations after it (None without a training log)."""
     log = run_dir / "metrics.jsonl"
     if not log.is_file():
         return None
-    last = None
+    first = last = None
     for line in log.read_text().splitlines():
         row = json.loads(line)
-        if "time" in row and row.get("step", 0) > 0:
+        if "time" not in row:
+            continue
+        if row.get("step", 0) == 0:
+            first = row
+        else:
             last = row
-    return None if last is None else last["time"] / last["step"]
+    if last is None:
+        return None
+    if not after_first:
+        return last["time"] / last["step"]
+    return None if first is None else (last["time"] - first["time"]) / last["step"]
 
 
 def run_once(src: Path, args: list[str], out: Path, threads: int) -> float:
@@ -84,27 +94,35 @@ def main(argv: list[str] | None = None) -> int:
         try:
             sides = {"base": base_tree / "src", "this": ROOT / "src"}
             commands = {"base": command + shlex.split(a.base_extra), "this": command + shlex.split(a.this_extra)}
-            ratios, step_ratios = [], []
+            ratios, step_ratios, later_ratios = [], [], []
             print(f"ginn {' '.join(command)}  ({a.threads} thread(s), base {a.base} adds {a.base_extra!r}; "
                   f"this tree adds {a.this_extra!r})")
             for r in range(a.runs):
                 order = ["base", "this"] if r % 2 == 0 else ["this", "base"]
-                secs, per_it = {}, {}
+                secs, per_it, later = {}, {}, {}
                 for side in order:
                     out = Path(tmp) / f"run-{side}-{r}"
                     secs[side] = run_once(sides[side], commands[side], out, a.threads)
                     per_it[side] = seconds_per_iteration(out)
+                    later[side] = seconds_per_iteration(out, after_first=True)
                 ratios.append(secs["this"] / secs["base"])
                 line = f"round {r}: base {secs['base']:.1f} s, this {secs['this']:.1f} s, ratio {ratios[-1]:.3f}"
                 if per_it["base"] and per_it["this"]:
                     step_ratios.append(per_it["this"] / per_it["base"])
                     line += (f"; s / iteration base {per_it['base']:.4f}, this {per_it['this']:.4f}, "
                              f"ratio {step_ratios[-1]:.3f}")
+                if later["base"] and later["this"]:
+                    later_ratios.append(later["this"] / later["base"])
+                    line += (f"; after the first iteration base {later['base']:.4f}, this {later['this']:.4f}, "
+                             f"ratio {later_ratios[-1]:.3f}")
                 print(line, flush=True)
             print(f"median ratio this/base: {statistics.median(ratios):.3f} (min {min(ratios):.3f}, max {max(ratios):.3f})")
             if step_ratios:
                 print(f"median ratio of s / iteration: {statistics.median(step_ratios):.3f} "
                       f"(min {min(step_ratios):.3f}, max {max(step_ratios):.3f})")
+            if later_ratios:
+                print(f"median ratio of s / iteration after the first: {statistics.median(later_ratios):.3f} "
+                      f"(min {min(later_ratios):.3f}, max {max(later_ratios):.3f})")
         finally:
             subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(base_tree)], check=False)
     return 0

@@ -21,4 +21,6 @@ def test_seconds_per_iteration_reads_the_last_logged_iteration(tmp_path):
             {"step": 20, "time": 4.0}]
     (tmp_path / "metrics.jsonl").write_text("\n".join(json.dumps(r) for r in rows) + "\n")
     assert ab.seconds_per_iteration(tmp_path) == 4.0 / 20
+    # from the end of iteration 0 on: without what the run paid once at its start
+    assert ab.seconds_per_iteration(tmp_path, after_first=True) == (4.0 - 0.3) / 20
     assert ab.seconds_per_iteration(tmp_path / "missing") is None
