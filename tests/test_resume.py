@@ -25,8 +25,11 @@ from ginn.train.trainer import Trainer
 
 # the demo's four shapes with fewer domain samples: one shape stays in two pieces, so the
 # connectedness loss penalises a saddle at every step, with warm updates between rebuilds
+# the runs below compare an uninterrupted run in this process with processes of their own: with
+# the eager kernels, which every process computes alike (the compiled ones are checked process
+# against process, test_compiled_kernels_resume_bitwise)
 OBSTACLE = ["sampling.n_domain=512", "sampling.n_outside=256", "connectedness.every=3", "training.threads=1",
-            "training.log_every=1"]
+            "training.log_every=1", "training.compile=false"]
 
 
 @pytest.fixture(autouse=True)
@@ -246,3 +249,26 @@ def test_one_run_killed_ten_times_ends_like_the_uninterrupted_one(tmp_path):
     model = make_task(spec, cfg).build_model()
     model.load_state_dict(ck["model"])
     assert _same(_weights(base.model), _weights(model))
+
+
+def test_compiled_kernels_resume_bitwise(tmp_path):
+    """With the compiled SIREN kernels (the default), every run in a process of its own: a run
+    killed with SIGKILL and continued by ``ginn resume`` ends with the uninterrupted run's weights
+    (the kernels' code depends only on their shapes, not on what a process ran before)."""
+    sets = [o for o in OBSTACLE if not o.startswith("training.compile")]
+    sets += ["training.iterations=30", "training.checkpoint_every=1000", "training.checkpoint_seconds=0.2"]
+    whole = tmp_path / "whole"
+    proc = _cli("obstacle", "--preset", "demo", out=whole, sets=sets)
+    assert proc.wait() == 0, proc.stderr.read()
+    out = tmp_path / "killed"
+    proc = _cli("obstacle", "--preset", "demo", out=out, sets=sets)
+    while _poll_step(out / "metrics.jsonl") < 15 and proc.poll() is None:
+        time.sleep(0.02)
+    assert proc.poll() is None, proc.stderr.read()
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    done = subprocess.run([sys.executable, "-m", "ginn", "resume", str(out), "--quiet"], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    a, b = (load_checkpoint(d / "checkpoints" / "last.pt") for d in (whole, out))
+    assert a["step"] == b["step"] == 30
+    assert a["model"].keys() == b["model"].keys() and all(torch.equal(a["model"][k], b["model"][k]) for k in a["model"])

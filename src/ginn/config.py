@@ -231,8 +231,8 @@ class TrainingConfig(_Strict):
     threads: int = Field(0, ge=0, description="torch CPU threads (0: leave the default)")
     compile: bool = Field(
         True, description="compute a SIREN's value and input gradient in the training pass with torch.compile "
-        "kernels (the same numbers to rounding, 0.55-0.7 of the time; a few seconds of compiling at the start; "
-        "uncompiled, with a warning, where torch cannot compile)")
+        "kernels (the same numbers to rounding in fewer passes over memory; a few seconds of compiling at the "
+        "start; uncompiled, with a warning, where torch cannot compile)")
     feasibility_checks: int = Field(
         10, ge=0, description="shape problems: how many times per run (evenly spaced, and at the end) the shapes are "
         "checked against the problem's tolerances on a coarse grid; logged and shown in the progress bar (0: never)")

@@ -24,8 +24,8 @@ Hessians.
 
 With ``compiled=True`` both recursions run as ``torch.compile`` kernels, which fuse the
 elementwise passes of each layer (sine, cosine and the products) into one loop over the
-activations: the same numbers to float32 rounding, in 0.55-0.7 of the time on a CPU
-(``benchmarks/derivatives.py --compile``). The first call of a new network shape compiles (a few
+activations: the same numbers to float32 rounding in fewer passes over memory
+(``benchmarks/derivatives.py --compile``). The first call with a new shape compiles (a few
 seconds; torch keeps the kernels in its on-disk cache for later processes). Where compiling
 fails (no C++ compiler, no Triton for the GPU) the eager kernels take over for the rest of the
 process, with one warning.
@@ -203,9 +203,10 @@ def _kernel(which: int, compiled: bool):
     if not compiled or _compile_failed:
         return _EAGER[which]
     if _compiled is None:
-        # dynamic: one kernel for every number of rows, so that a run computes with the same
-        # kernels whatever it called before (a resumed run equals the uninterrupted one bitwise)
-        _compiled = (torch.compile(_forward, dynamic=True), torch.compile(_backward, dynamic=True))
+        # static shapes: the code generated for a kernel depends only on its shapes (a dynamic
+        # kernel's depends on the sizes it first saw), so a resumed run, a fresh process, computes
+        # with the uninterrupted run's kernels; a training pass has one shape for the whole run
+        _compiled = (torch.compile(_forward, dynamic=False), torch.compile(_backward, dynamic=False))
     return _Guarded(which)
 
 
