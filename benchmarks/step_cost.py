@@ -13,10 +13,12 @@
 
 For each configuration it prints seconds per iteration (the median over ``--blocks`` blocks of
 ``--steps`` iterations; configurations take turns block by block, so a drift of the machine's
-speed hits all of them alike) and the share of each part of a step (of all blocks together): sampling, the main pass,
-the zero-level-set projection, curvature and strain, diversity, connectedness, and the backward
-pass with the optimiser step, and the share of connectedness calls that rebuilt the whole surface
-network (the rest are warm updates, ``docs/connectedness.md``). ``--shapes`` overrides the number of shapes of generative shape
+speed hits all of them alike) and the share of each part of a step (of all blocks together; a
+part inside another counts for itself only): sampling, the main pass (with the terms computed
+from its values), the zero-level-set projection, curvature and strain (with their Hessian
+pass), diversity, connectedness, and the backward pass with the optimiser step, and the share
+of connectedness calls that rebuilt the whole surface network (the rest are warm updates,
+``docs/connectedness.md``). ``--shapes`` overrides the number of shapes of generative shape
 presets and prints the scaling exponent of the step cost (``t ~ S^a`` between the first and the
 last count). ``--compare full-diversity`` runs every configuration twice, with the exact
 nearest-pair diversity (ginn's) and with the full ``S x S`` computation, and prints their ratio;
@@ -49,14 +51,19 @@ import torch
 
 from ginn import runs
 from ginn.config import deep_merge, parse_set
+from ginn.constraints import Batch
 from ginn.tasks import make_task
 from ginn.tasks.shape import ShapeTask
 from ginn.topology import trace_surface_network
 from ginn.train.checkpoint import load_checkpoint
 from ginn.train.trainer import Trainer
 
-shape_module = importlib.import_module("ginn.tasks.shape")
+constraint_diversity = importlib.import_module("ginn.constraints.diversity")
 diversity_module = importlib.import_module("ginn.losses.diversity")
+#: the part of a step each constraint's loss is charged to (the rest: the main pass, with the
+#: terms computed from its values)
+CHARGED = {"mean_curvature": "curvature/strain", "strain": "curvature/strain", "diversity": "diversity",
+           "connectedness": "connectedness"}
 
 SUITE = sorted(str(p) for p in (Path(__file__).resolve().parent / "suite").glob("*.yaml")) + ["obstacle", "bracket", "wheel"]
 PRESETS = ["obstacle:demo", "obstacle:quick", "bracket:cpu", "bracket:cpu-gen", "plateau:cpu", "mirror:", "gray-scott:quick"]
@@ -64,20 +71,30 @@ PARTS = ["sampling", "main pass", "projection", "curvature/strain", "diversity",
 
 
 class Clock:
-    """Accumulates wall time per part while a step runs."""
+    """Accumulates wall time per part while a step runs; a part inside another is charged to
+    itself only (the outer part pauses)."""
 
     def __init__(self):
         self.t = defaultdict(float)
         self.calls = 0  # connectedness calls, and those that rebuilt the surface network
         self.rebuilds = 0
+        self._open: list[list] = []  # [name, since] of the parts running, innermost last
 
     @contextmanager
     def part(self, name: str):
-        t0 = time.perf_counter()
+        now = time.perf_counter()
+        if self._open:
+            outer = self._open[-1]
+            self.t[outer[0]] += now - outer[1]
+        self._open.append([name, now])
         try:
             yield
         finally:
-            self.t[name] += time.perf_counter() - t0
+            now = time.perf_counter()
+            inner, since = self._open.pop()
+            self.t[inner] += now - since
+            if self._open:
+                self._open[-1][1] = now
 
     def wrap(self, obj, attr: str, name: str):
         fn = getattr(obj, attr)
@@ -87,6 +104,16 @@ class Clock:
                 return fn(*a, **kw)
 
         setattr(obj, attr, timed)
+
+    def wrap_class(self, cls, attr: str, name: str):
+        """Time a method of every instance of ``cls`` (the batches a step creates)."""
+        fn = getattr(cls, attr)
+
+        def timed(obj, *a, **kw):
+            with self.part(name):
+                return fn(obj, *a, **kw)
+
+        setattr(cls, attr, timed)
 
 
 def _full_diversity(field, xb, Z, mask, p, eps):
@@ -99,14 +126,14 @@ def _trace_every_saddle(loss, field, Z, pts, valid):
 
 
 class _Timed:
-    """A callable object (a connectedness loss) whose calls are timed; everything else delegates."""
+    """A connectedness loss whose calls are counted (and how many rebuilt the surface network);
+    everything else delegates."""
 
-    def __init__(self, inner, clock: Clock, name: str):
-        self._inner, self._clock, self._name = inner, clock, name
+    def __init__(self, inner, clock: Clock):
+        self._inner, self._clock = inner, clock
 
     def __call__(self, *a, **kw):
-        with self._clock.part(self._name):
-            out = self._inner(*a, **kw)
+        out = self._inner(*a, **kw)
         info = getattr(self._inner, "last_info", None) or {}
         self._clock.calls += 1
         # the share of the shapes built afresh (a build can take some shapes only)
@@ -138,31 +165,28 @@ def build(preset: str, shapes: int | None, device: str, threads: int, from_itera
     clock = Clock()
     if isinstance(task, ShapeTask):
         if baseline == "direct-membership":  # E answers for itself: the samples outside E and the paths' points
-            task._membership = task.problem.design_region
-        clock.wrap(task, "sample", "sampling")
-        clock.wrap(task, "boundary_points", "projection")
-        clock.wrap(task, "_boundary_losses", "curvature/strain")  # diversity is subtracted below
-        if "connectedness" in trainer.active_terms(10**9):
-            loss = task.connectedness_loss()
-            if baseline == "direct-membership" and hasattr(loss, "_membership"):
-                loss._membership = loss.region
-            if baseline == "every-saddle" and hasattr(loss, "_trace"):  # paths from the saddles outside E too
-                loss._trace = partial(_trace_every_saddle, loss)
-            task._conn = _Timed(loss, clock, "connectedness")
+            task.setting._membership = task.problem.design_region
+        clock.wrap(task, "draw_batch", "sampling")
+        for c in task.constraints:
+            clock.wrap(c, "loss", CHARGED.get(c.name, "main pass"))
+            if c.name == "connectedness" and "connectedness" in trainer.active_terms(10**9):
+                loss = c.fn
+                if baseline == "direct-membership" and hasattr(loss, "_membership"):
+                    loss._membership = loss.region
+                if baseline == "every-saddle" and hasattr(loss, "_trace"):  # paths from the saddles outside E too
+                    loss._trace = partial(_trace_every_saddle, loss)
+                c._fn = _Timed(loss, clock)
+        for attr, name in (("evaluate", "main pass"), ("_project", "projection")):
+            clock.wrap_class(Batch, attr, name)
     clock.wrap(task, "loss_terms", "loss")
     return trainer, clock
 
 
 def run_block(trainer: Trainer, clock: Clock, steps: int, full_diversity: bool) -> dict:
     """``steps`` iterations; returns the seconds per iteration of each part."""
-    div_fn = diversity_module.diversity_nearest
-    inner = Clock()
-
-    def timed_div(*a, **kw):
-        with inner.part("diversity"):
-            return (_full_diversity if full_diversity else div_fn)(*a, **kw)
-
-    shape_module.diversity_nearest = timed_div
+    div_fn = constraint_diversity.diversity_nearest
+    if full_diversity:
+        constraint_diversity.diversity_nearest = _full_diversity
     clock.t.clear()
     clock.calls = clock.rebuilds = 0
     t0 = time.perf_counter()
@@ -172,17 +196,14 @@ def run_block(trainer: Trainer, clock: Clock, steps: int, full_diversity: bool) 
             if trainer.device.type == "cuda":
                 torch.cuda.synchronize()
     finally:
-        shape_module.diversity_nearest = div_fn
+        constraint_diversity.diversity_nearest = div_fn
     total = time.perf_counter() - t0
     t = dict(clock.t)
-    out = {"total": total / steps, "diversity": inner.t["diversity"] / steps,
-           "calls": clock.calls, "rebuilds": clock.rebuilds}
-    out["curvature/strain"] = (t.get("curvature/strain", 0.0) - inner.t["diversity"]) / steps
-    for k in ("sampling", "projection", "connectedness"):
+    out = {"total": total / steps, "calls": clock.calls, "rebuilds": clock.rebuilds}
+    for k in PARTS[:-1]:
         out[k] = t.get(k, 0.0) / steps
-    loss = t.get("loss", 0.0) / steps
-    out["main pass"] = loss - sum(out[k] for k in ("sampling", "projection", "connectedness", "curvature/strain", "diversity"))
-    out["backward+step"] = out["total"] - loss
+    out["main pass"] += t.get("loss", 0.0) / steps  # the step's own work outside the parts above
+    out["backward+step"] = out["total"] - sum(out[k] for k in PARTS[:-1])
     return out
 
 

@@ -23,11 +23,11 @@ import numpy as np
 import torch
 
 from ginn.config import GSParams
-from ginn.eval.reference.gray_scott import GrayScottSolver, relative_residual
 from ginn.models.base import PeriodicEncoding
 from ginn.models.siren import Siren
 from ginn.tasks.gray_scott import GrayScottField, fixed_latents, sample_grid
 from ginn.tasks.gray_scott.finite_diff import fourier_shift, spectral_laplacian
+from ginn.tasks.gray_scott.solver import GrayScottSolver, relative_residual
 
 
 def fourier_resample(F: np.ndarray, n: int) -> np.ndarray:

@@ -84,7 +84,7 @@ def test_connectedness_reduces_b0(runs):
     ∩ E) 1 with, 12 without; b0 2 and 2 (a speck outside E in the run with the loss)."""
     m = {}
     for which, (task, model) in runs.items():
-        m[which] = evaluate_shapes(model, None, task.problem, resolution=64)["shapes"][0]
+        m[which] = evaluate_shapes(model, None, task.problem, resolution=64).to_json()["shapes"][0]
         print(which, {k: m[which][k] for k in ("b0", "b0_in_design_region", "connected_interfaces_share", "interface_cd1")})
     assert m["with"]["b0_in_design_region"] < m["without"]["b0_in_design_region"]
     assert m["with"]["b0"] <= m["without"]["b0"]
@@ -106,7 +106,7 @@ def test_cpu_preset_meets_the_acceptance_bounds():
     9.4e-4); about 10 minutes on 2 idle cores.
     """
     task, model = _train_preset("cpu")
-    m = evaluate_shapes(model, None, task.problem, resolution=256)["shapes"][0]
+    m = evaluate_shapes(model, None, task.problem, resolution=256).to_json()["shapes"][0]
     print({k: m[k] for k in ("b0", "b0_in_design_region", "connected_interfaces_share", "interface_cd1", "volume_outside")})
     assert m["b0_in_design_region"] == 1
     assert m["connected_interfaces_share"] == 1.0

@@ -58,6 +58,7 @@ def test_problems_lists_builtins(capsys):
     assert code == 0 and "design_region" in out
 
 
+@pytest.mark.long
 def test_train_eval_export_plot_resume_round_trip(tmp_path, capsys):
     run = tmp_path / "run"
     code, out, _ = run_cli(["train", "obstacle", "--preset", "demo", "--iterations", "3", "--out", str(run), *TINY], capsys)
@@ -85,6 +86,7 @@ def test_train_eval_export_plot_resume_round_trip(tmp_path, capsys):
     assert json.loads((run / "status.json").read_text())["step"] == 5
 
 
+@pytest.mark.long
 def test_module_entry_point_help():
     r = subprocess.run([sys.executable, "-m", "ginn", "--help"], capture_output=True, text=True, timeout=120)
     assert r.returncode == 0

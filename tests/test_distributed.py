@@ -17,6 +17,7 @@ import torch.multiprocessing as mp
 
 from ginn.problems import load_spec
 from ginn.tasks import make_task
+from ginn.train.callbacks import Hook
 from ginn.train.checkpoint import load_checkpoint
 from ginn.train.trainer import Trainer
 
@@ -59,7 +60,7 @@ def _worker(rank: int, world: int, port: int, run_dir: str, iterations: list[int
         tr = Trainer(make_task(spec, c), c, run_dir, progress=False, dist=ctx)
         if i > 0:
             assert tr.resume()
-        tr.hooks.append(lambda t, step, v: losses.append(v["total"]))
+        tr.callbacks.insert(0, Hook(lambda t, step, v: losses.append(v["total"])))
         tr.train()
     torch.save({"weights": _weights(tr.model), "losses": losses}, f"{out}.{rank}")
     shutdown(ctx)
@@ -81,6 +82,7 @@ def _single(extra=None):
     return _weights(tr.model), losses
 
 
+@pytest.mark.long
 def test_two_ranks_equal_one_process_with_diversity_and_resume(tmp_path):
     ref_w, ref_losses = _single()
     # 2 ranks train 2 iterations, stop, and resume from the checkpoint up to 4

@@ -57,6 +57,7 @@ def test_html_has_a_frame_per_latent_and_fetches_nothing(run_2d, tmp_path):
     assert [t["name"] for t in data][:2] == ["shape", "obstacle"] and len(layout["sliders"][0]["steps"]) == 8
 
 
+@pytest.mark.long
 def test_single_3d_shape_has_one_frame_and_the_envelope(tmp_path):
     spec, cfg = runs.resolve("bracket", "demo", {"training": {"iterations": 2}},
                              sets=["model.hidden=[16,16]", "sampling.n_domain=256", "sampling.n_outside=128",
@@ -96,6 +97,7 @@ def _shot(browser: str, url: str, out) -> np.ndarray:
     return np.asarray(mpimg.imread(str(out)))[..., :3]
 
 
+@pytest.mark.long
 def test_renders_in_a_browser_and_the_slider_changes_the_picture(run_2d, tmp_path):
     browser = _browser()
     if browser is None:
@@ -110,8 +112,8 @@ def test_renders_in_a_browser_and_the_slider_changes_the_picture(run_2d, tmp_pat
 def test_views_of_the_gray_scott_patterns_and_the_mirror(tmp_path):
     """Gray-Scott: a heatmap of v per slider position with the relative residual and std(v) of that
     pattern; the mirror: its profile against x^2 / 4F with the largest deviation."""
-    from ginn.eval.gray_scott import sample_fields
-    from ginn.eval.reference.gray_scott import relative_residual
+    from ginn.tasks.gray_scott.checks import sample_fields
+    from ginn.tasks.gray_scott.solver import relative_residual
 
     spec, cfg = runs.resolve("gray-scott", "quick", {"training": {"iterations": 2}},
                              sets=["training.threads=1", "latents.n_shapes=2"])

@@ -8,13 +8,16 @@ import torch
 
 from ginn import runs
 from ginn.config import build_config
+from ginn.constraints import Violation
 from ginn.eval.feasibility import FEASIBILITY_METRICS, check_feasibility, format_feasibility, ratios, summarize, violations
+from ginn.eval.results import FeasibilitySummary
 from ginn.eval.shapes import evaluate_shapes
 from ginn.fields import as_field
 from ginn.geometry import csg
 from ginn.geometry.primitives import AABox, Ball
 from ginn.problems import load_spec, validate_spec
 from ginn.problems.problem import Tolerances
+from ginn.tasks.shape import FeasibilityChecks
 from ginn.train.trainer import Trainer
 from test_trainer import CircleFit
 
@@ -93,12 +96,12 @@ def test_check_and_eval_give_the_same_verdicts(obstacle):
     for name, (sdf, expected) in _fields(obstacle).items():
         field = as_field(sdf)
         coarse = check_feasibility(field, None, obstacle, resolution=128)
-        fine = evaluate_shapes(field, None, obstacle, resolution=512)["feasibility"]
-        assert set(coarse["violations"][0]) == expected, (name, coarse)
-        assert set(fine["violations"][0]) == expected, (name, fine)
-        assert coarse["feasible"] == fine["feasible"] == (0 if expected else 1)
+        fine = evaluate_shapes(field, None, obstacle, resolution=512).feasibility
+        assert set(coarse.violations[0]) == expected, (name, coarse)
+        assert set(fine.violations[0]) == expected, (name, fine)
+        assert coarse.feasible == fine.feasible == (0 if expected else 1)
     empty = check_feasibility(as_field(lambda x: torch.ones_like(x[:, 0])), None, obstacle, resolution=64)
-    assert empty["violations"][0]["interface"]["value"] is None and "interface_cd1" not in empty["worst"]
+    assert empty.violations[0]["interface"].value is None and "interface_cd1" not in empty.worst
 
 
 def test_summary_counts_and_worst(obstacle):
@@ -108,15 +111,15 @@ def test_summary_counts_and_worst(obstacle):
                "connected_interfaces_share": 1.0}
               for c, v, w, b in [(1e-3, 0.01, 0.0, 1), (9e-3, 1e-3, 1e-3, 1), (2e-3, 0.2, 0.19, 3)]]
     s = summarize(shapes, obstacle)
-    assert s["feasible"] == 1 and s["shapes"] == 3
-    assert s["worst"] == {"interface_cd1": 9e-3, "volume_outside": 0.19, "b0_in_design_region": 3.0}
+    assert s.feasible == 1 and s.shapes == 3
+    assert s.worst == {"interface_cd1": 9e-3, "volume_outside": 0.19, "b0_in_design_region": 3.0}
     text = format_feasibility(s)
     assert text.splitlines()[0] == "feasible shapes: 1 of 3"
     assert "shape 1: interface 0.009 > 0.005" in text and "shape 2: volume_outside 0.19 > 0.005; connected: 3 pieces" in text
     assert set(FEASIBILITY_METRICS) <= set(shapes[0])
     # metrics without the off-interface volume (older runs) are judged by volume_outside
     old = [{k: v for k, v in m.items() if k != "volume_outside_off_interfaces"} for m in shapes]
-    assert summarize(old, obstacle)["feasible"] == 0 and summarize(old, obstacle)["worst"]["volume_outside"] == 0.2
+    assert summarize(old, obstacle).feasible == 0 and summarize(old, obstacle).worst["volume_outside"] == 0.2
 
 
 def test_ratios_are_values_over_bounds(obstacle):
@@ -131,15 +134,15 @@ def test_ratios_are_values_over_bounds(obstacle):
     shapes = [m, dict(m, interface_cd1=2e-3, volume_outside_off_interfaces=0.015, b0_in_design_region=1),
               dict(m, interface_cd1=None)]
     # the summary holds the largest ratio of each constraint, undefined ones as None (strict JSON)
-    assert summarize(shapes, obstacle)["ratios"] == {"interface": None, "volume_outside": pytest.approx(3.0),
+    assert summarize(shapes, obstacle).ratios == {"interface": None, "volume_outside": pytest.approx(3.0),
                                                      "connected": 2.0}
-    assert summarize(shapes[:2], obstacle)["ratios"]["interface"] == pytest.approx(1.6)
+    assert summarize(shapes[:2], obstacle).ratios["interface"] == pytest.approx(1.6)
 
 
 def test_topology_targets_enter_the_verdict(obstacle):
     import dataclasses
 
-    from ginn.eval.feasibility import feasibility_metrics, verdict_text
+    from ginn.eval.feasibility import feasibility_metrics, shape_violations, verdict_text
     from ginn.problems.problem import Topology
 
     p = dataclasses.replace(obstacle, topology=Topology(b1=2))
@@ -147,18 +150,18 @@ def test_topology_targets_enter_the_verdict(obstacle):
          "b1_in_design_region": 3, "b2_in_design_region": None}
     v = violations(m, p)
     assert v == {"topology": {"value": {"holes": 3}, "bound": {"holes": 2}}}
-    assert verdict_text(v) == "topology: 3 holes (want 2)"
-    assert verdict_text(violations(dict(m, b1_in_design_region=1), p)) == "topology: 1 hole (want 2)"
+    assert verdict_text(shape_violations(m, p)) == "topology: 3 holes (want 2)"
+    assert verdict_text(shape_violations(dict(m, b1_in_design_region=1), p)) == "topology: 1 hole (want 2)"
     assert ratios(m, p)["topology"] == 2.0 and ratios(dict(m, b1_in_design_region=0), p)["topology"] == 3.0
     assert violations(dict(m, b1_in_design_region=2), p) == {} and ratios(dict(m, b1_in_design_region=2), p)["topology"] == 1.0
     assert "b1_in_design_region" in feasibility_metrics(p) and "b1_in_design_region" not in feasibility_metrics(obstacle)
     assert "topology" not in ratios(m, obstacle)  # no targets: no constraint
     # the check and ginn eval count the same holes: E itself has one, round the obstacle's disk
     field = as_field(p.design_region.sdf)
-    assert check_feasibility(field, None, dataclasses.replace(obstacle, topology=Topology(b1=1)), 128)["feasible"] == 1
+    assert check_feasibility(field, None, dataclasses.replace(obstacle, topology=Topology(b1=1)), 128).feasible == 1
     coarse = check_feasibility(field, None, p, 128)
-    fine = evaluate_shapes(field, None, p, resolution=512)["feasibility"]
-    assert coarse["violations"][0]["topology"] == fine["violations"][0]["topology"] == \
+    fine = evaluate_shapes(field, None, p, resolution=512).feasibility
+    assert coarse.violations[0]["topology"].to_json() == fine.violations[0]["topology"].to_json() == \
         {"value": {"holes": 1}, "bound": {"holes": 2}}
 
 
@@ -206,9 +209,17 @@ def test_training_logs_the_checks_and_leaves_the_weights_alone(tmp_path):
         assert torch.equal(p, q)
 
 
-class AlwaysFeasible(CircleFit):
+class Judged(CircleFit):
+    """A toy task with a verdict: it contributes the feasibility checks of shape tasks, judged by
+    its own ``feasibility``."""
+
+    def callbacks(self, dist=None):
+        return [FeasibilityChecks(self.feasibility, self.cfg.training)]
+
+
+class AlwaysFeasible(Judged):
     def feasibility(self, model):
-        return {"feasible": 1, "shapes": 1, "violations": [{}], "worst": {}}
+        return FeasibilitySummary(1, 1, [{}])
 
 
 def test_stop_when_feasible_waits_for_steady_objectives(tmp_path):
@@ -237,7 +248,7 @@ def test_shape_pictures_show_the_problem_and_the_verdict(tmp_path):
     task = make_task(spec, cfg)
     model = task.build_model().double()
     task.Z = task.Z.double()
-    paths = task.export(model, None, tmp_path, 64)
+    paths = task.results.export(model, None, tmp_path, 64)
     pngs = sorted(p for p in paths if p.suffix == ".png")
     assert [p.name[:9] for p in pngs] == ["shape_000", "shape_001"]
     assert {p.suffix for p in paths} == {".png", ".json", ".csv", ".npz", ".svg"}
@@ -247,7 +258,7 @@ def test_shape_pictures_show_the_problem_and_the_verdict(tmp_path):
     assert (np.abs(rgb - 217).max(axis=-1) < 2).sum() > 100
 
 
-class ScriptedVerdicts(CircleFit):
+class ScriptedVerdicts(Judged):
     """Feasible counts from a script, one per check; records the weights at each check."""
 
     def __init__(self, cfg, script):
@@ -257,7 +268,7 @@ class ScriptedVerdicts(CircleFit):
     def feasibility(self, model):
         k = self.script[len(self.seen)]
         self.seen.append(torch.cat([p.detach().flatten().clone() for p in model.parameters()]))
-        return {"feasible": k, "shapes": 4, "violations": [{}] * k + [{"interface": {}}] * (4 - k), "worst": {}}
+        return FeasibilitySummary(k, 4, [{}] * k + [{"interface": Violation(1.0, 0.5)}] * (4 - k))
 
 
 def _flat(model) -> torch.Tensor:
@@ -282,7 +293,7 @@ def test_run_ends_with_the_weights_of_the_most_feasible_check(tmp_path, keep):
     restored = [e for e in events if e.get("event") == "restored"]
     checks = [e for e in events if e.get("event") == "feasibility"]
     if keep:
-        assert torch.equal(final, task.seen[5]) and tr.feasibility["feasible"] == 3
+        assert torch.equal(final, task.seen[5]) and tr.callbacks[-1].last.feasible == 3
         torch.testing.assert_close(final, torch.stack(after[20:30]).mean(0), rtol=0, atol=1e-6)
         assert restored == [{"step": 50, "event": "restored", "from_step": 30, "mean": True, "mean_iterations": 10,
                              "feasible": 3, "shapes": 4, "instead_of": 1}]
@@ -296,7 +307,7 @@ def test_run_ends_with_the_weights_of_the_most_feasible_check(tmp_path, keep):
     tr2 = Trainer(t2, c2, None, progress=False)
     tr2.train()
     assert torch.equal(_flat(tr2.model), t2.seen[2])
-    assert tr2.restored is None
+    assert tr2.callbacks[-1].restored is None
 
 
 def test_a_least_diversity_is_a_bound_on_the_set():
@@ -315,17 +326,17 @@ def test_a_least_diversity_is_a_bound_on_the_set():
 
     Z = torch.tensor([[0.0], [0.1]], dtype=torch.float64)
     s = check_feasibility(rings, Z, P, 256)
-    assert s["feasible"] == 2
-    d = s["set_violations"]["diversity"]
-    assert d["bound"] == pytest.approx(0.2) and d["value"] == pytest.approx(0.1 * np.sqrt(2), rel=0.01)
-    assert s["ratios"]["diversity"] == pytest.approx(0.2 / d["value"])
+    assert s.feasible == 2
+    d = s.set_violations["diversity"]
+    assert d.bound == pytest.approx(0.2) and d.value == pytest.approx(0.1 * np.sqrt(2), rel=0.01)
+    assert s.ratios["diversity"] == pytest.approx(0.2 / d.value)
     assert "the set: diversity 0.14" in format_feasibility(s)
     met = check_feasibility(rings, Z, replace(P, tolerances=Tolerances(interface=0.2, connected=False, diversity=0.1)), 256)
-    assert met["set_violations"] == {} and met["ratios"]["diversity"] == pytest.approx(0.1 / (0.1 * np.sqrt(2)), rel=0.01)
+    assert met.set_violations == {} and met.ratios["diversity"] == pytest.approx(0.1 / (0.1 * np.sqrt(2)), rel=0.01)
     # ginn eval reports the same bound; without a stated least diversity there is none
-    assert evaluate_shapes(rings, Z, P, 256)["feasibility"]["set_violations"]["diversity"]["value"] == pytest.approx(
+    assert evaluate_shapes(rings, Z, P, 256).feasibility.set_violations["diversity"].value == pytest.approx(
         0.1 * np.sqrt(2), rel=0.01)
-    assert "diversity" not in check_feasibility(rings, Z, replace(P, tolerances=Tolerances(interface=0.2, connected=False)), 256)["ratios"]
+    assert "diversity" not in check_feasibility(rings, Z, replace(P, tolerances=Tolerances(interface=0.2, connected=False)), 256).ratios
 
 
 def test_the_run_records_the_spec_it_trained(tmp_path):
@@ -344,3 +355,22 @@ def test_the_run_records_the_spec_it_trained(tmp_path):
     assert load_spec(run / "problem.yaml").build().topology.targets == {1: 2}
     verdict = runs.evaluate(run, resolution=64)["feasibility"]["violations"][0]
     assert verdict["topology"]["bound"] == {"holes": 2}
+
+
+def test_typed_results_round_trip_through_their_json(obstacle):
+    """A summary and the metrics of a shape are objects in the code and the same JSON on disk."""
+    from ginn.eval.results import ShapeMetrics
+
+    shapes = [ShapeMetrics(interface_cd1=9e-3, volume_outside=0.02, volume_outside_off_interfaces=0.01,
+                           b0_in_design_region=2, connected_interfaces_share=0.5, extra={"thickness": 0.1}),
+              ShapeMetrics(interface_cd1=float("inf"), volume_outside=0.0, b0_in_design_region=1,
+                           connected_interfaces_share=1.0)]
+    data = [m.to_json() for m in shapes]
+    assert data[1]["interface_cd1"] is None and data[0]["thickness"] == 0.1  # strict JSON; extras kept
+    back = [ShapeMetrics.from_json(d) for d in data]
+    assert back[0] == shapes[0] and back[1] == shapes[1].finite() and back[0].get("thickness") == 0.1
+    s = summarize(back, obstacle, diversity=0.3)  # as the check and ginn eval judge: undefined values as None
+    js = json.loads(json.dumps(s.to_json(), allow_nan=False))
+    assert FeasibilitySummary.from_json(js) == s and s.to_json() == js
+    assert js["violations"][0]["connected"] == {"value": 2, "bound": 1, "interfaces": 0.5}
+    assert s.violated_counts() == {"interface": 2, "volume_outside": 1, "connected": 1} and not s.all_feasible

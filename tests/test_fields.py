@@ -248,7 +248,7 @@ def test_compiled_siren_kernels_equal_the_eager_ones(gen):
         eager = _fast_path_numbers(net, x, z)
         assert compile_derivatives(wrapped, True) == 1 and net.compiled
         compiled = _fast_path_numbers(net, x, z)
-        if siren_grad._compile_failed:  # warned; the next test covers what runs then
+        if siren_grad.KERNELS.failed:  # warned; the next test covers what runs then
             compile_derivatives(wrapped, False)
             pytest.skip("torch cannot compile on this machine")
         for a, b in zip(compiled, eager):
@@ -264,8 +264,9 @@ def test_compiled_siren_kernels_fall_back_when_compiling_fails(gen, monkeypatch)
     def broken(*args):
         raise RuntimeError("no working C++ compiler found\nmore detail")
 
-    monkeypatch.setattr(siren_grad, "_compiled", (broken, broken))
-    monkeypatch.setattr(siren_grad, "_compile_failed", False)
+    kernels = siren_grad.Kernels()
+    kernels.compiled = (broken, broken)
+    monkeypatch.setattr(siren_grad, "KERNELS", kernels)
     torch.manual_seed(5)
     net = Siren(2, [8, 8], latent_dim=1).double()
     x = torch.rand(20, 2, dtype=D, generator=gen)
@@ -275,7 +276,7 @@ def test_compiled_siren_kernels_fall_back_when_compiling_fails(gen, monkeypatch)
     with pytest.warns(UserWarning, match=r"torch.compile failed \(no working C\+\+ compiler found\)") as record:
         first = _fast_path_numbers(net, x, z)
         again = _fast_path_numbers(net, x, z)
-    assert len(record) == 1 and siren_grad._compile_failed
+    assert len(record) == 1 and kernels.failed
     for a, b, c in zip(first, again, eager):
         assert torch.equal(a, c) and torch.equal(b, c)
 

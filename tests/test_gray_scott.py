@@ -9,7 +9,6 @@ from torch import nn
 
 from ginn.config import GSParams, build_config
 from ginn.errors import ConfigError
-from ginn.eval.gray_scott import translation_invariant_distance, verify_fields
 from ginn.tasks.gray_scott import (
     GrayScottField,
     GrayScottTask,
@@ -18,6 +17,7 @@ from ginn.tasks.gray_scott import (
     sample_grid,
     shift_invariant_sq_distance,
 )
+from ginn.tasks.gray_scott.checks import translation_invariant_distance, verify_fields
 
 
 def _cfg(**params):
@@ -154,12 +154,12 @@ def test_finalize_and_verify_run_write_files(tmp_path):
     torch.manual_seed(0)
     task = GrayScottTask(_cfg(resolution=16, n_interpolation=3), torch.device("cpu"), torch.float32)
     model = task.build_model()
-    files = task.finalize(model, tmp_path)
+    files = task.results.finalize(model, tmp_path)
     names = {f.name for f in files}
     assert {"u_00.npy", "v_02.npy", "v_01.png", "patterns_v.png", "interpolation_v.png"} <= names
     v0 = np.load(tmp_path / "patterns" / "v_00.npy")
     assert v0.shape == (16, 16)
-    from ginn.eval.gray_scott import Thresholds, verify_run
+    from ginn.tasks.gray_scott.checks import Thresholds, verify_run
 
     out = verify_run(model, task.latents(), task.cfg.params, resolution=16, out_dir=tmp_path,
                      thresholds=Thresholds(t_final=10.0))
@@ -172,9 +172,9 @@ def test_finalize_and_verify_run_write_files(tmp_path):
 @pytest.mark.slow
 def test_quick_preset_acceptance(tmp_path):
     """The acceptance of the quick preset: >= 8 latents pass all four checks."""
-    from ginn.eval.gray_scott import verify_run
     from ginn.problems.loader import get_spec
     from ginn.tasks import make_task
+    from ginn.tasks.gray_scott.checks import verify_run
     from ginn.train.trainer import Trainer
 
     spec = get_spec("gray-scott")
@@ -214,7 +214,7 @@ def test_flow_gradient_is_the_pde_time_derivative():
 
 
 def test_interpolation_latents_run_between_the_first_two_codes():
-    from ginn.viz.gray_scott import interpolation_latents
+    from ginn.tasks.gray_scott.figures import interpolation_latents
 
     Z = torch.tensor([[-1.0, 0.0], [1.0, 2.0], [5.0, 5.0]], dtype=torch.float64)
     I = interpolation_latents(Z, 5)
@@ -301,7 +301,7 @@ def test_fine_grid_takes_over_from_fine_grid_from():
     from iteration 2 on 16². Checked through the loss: for ``v = 0.2 + 0.05 sin(2 pi (5 x + y))``
     (5 cycles: aliased on 8², exact on 16²) the logged mean(R^2) equals the residual recomputed on the
     grid of that iteration, and the two grids give different values."""
-    from ginn.eval.reference.gray_scott import residuals
+    from ginn.tasks.gray_scott.solver import residuals
 
     task = GrayScottTask(_cfg(derivatives="spectral", grid=8, fine_grid=16, fine_grid_from=2, D_v=1e-3),
                         torch.device("cpu"), torch.float64)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from ginn.config import GSParams
-from ginn.eval.reference.gray_scott import GrayScottSolver, phase_randomised, relative_residual, residuals, spectral_laplacian
+from ginn.tasks.gray_scott.solver import GrayScottSolver, phase_randomised, relative_residual, residuals, spectral_laplacian
 
 P = GSParams()
 
@@ -89,7 +89,7 @@ def _solver_pattern(n, seed, T):
 def test_verification_passes_true_stationary_patterns():
     """The four checks pass on patterns the solver has converged to (so they can be met), and the
     phase-randomised control changes far more."""
-    from ginn.eval.gray_scott import verify_fields
+    from ginn.tasks.gray_scott.checks import verify_fields
 
     n = 64
     W = np.stack([np.stack(_solver_pattern(n, seed, 6000.0)) for seed in (0, 1)])

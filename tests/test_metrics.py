@@ -25,7 +25,7 @@ def problem(**kw):
 
 
 def test_disk_inside_design_region():
-    r = evaluate_shapes(as_field(Disk((0.1, 0.0), 0.4).sdf), None, problem(), 128)
+    r = evaluate_shapes(as_field(Disk((0.1, 0.0), 0.4).sdf), None, problem(), 128).to_json()
     s = r["shapes"][0]
     assert s["b0"] == 1 and s["b0_in_design_region"] == 1
     assert s["volume_outside"] == 0.0
@@ -40,7 +40,7 @@ def test_two_disks_b0_and_disconnected_volume():
     r1, r2 = 0.3, 0.15
     f = union(Disk((-0.4, 0.0), r1).sdf, Disk((0.5, 0.3), r2).sdf)
     res = 256
-    s = evaluate_shapes(f, None, problem(), res)["shapes"][0]
+    s = evaluate_shapes(f, None, problem(), res).to_json()["shapes"][0]
     assert s["b0"] == 2 and s["b0_in_design_region"] == 2
     exact = math.pi * r2**2 / 3.24
     # Grid tolerance: only nodes whose (h x h) quadrature cell meets the circle can be miscounted,
@@ -55,16 +55,16 @@ def test_two_disks_b0_and_disconnected_volume():
 def test_volume_outside_of_a_disk_crossing_the_design_region():
     # E = the left half x <= 0; a disk of radius 0.4 at the origin: half of it is outside E.
     P = problem(design_region=Rect((-1.0, -1.0), (0.0, 1.0)))
-    s = evaluate_shapes(as_field(Disk((0.0, 0.0), 0.4).sdf), None, P, 256)["shapes"][0]
+    s = evaluate_shapes(as_field(Disk((0.0, 0.0), 0.4).sdf), None, P, 256).to_json()["shapes"][0]
     assert s["volume_outside"] == pytest.approx((math.pi * 0.16 / 2) / 2.0, rel=0.01)
     assert s["b0_in_design_region"] == 1
 
 
 def test_interface_cd1_concentric_circles():
     r1, r2 = 0.5, 0.3
-    s = evaluate_shapes(as_field(Disk((0.0, 0.0), r1).sdf), None, problem(interfaces=(Circle(r2),)), 256)["shapes"][0]
+    s = evaluate_shapes(as_field(Disk((0.0, 0.0), r1).sdf), None, problem(interfaces=(Circle(r2),)), 256).to_json()["shapes"][0]
     assert s["interface_cd1"] == pytest.approx(abs(r1 - r2), abs=1e-3)
-    s = evaluate_shapes(as_field(Disk((0.0, 0.0), r1).sdf), None, problem(interfaces=(Circle(r1),)), 256)["shapes"][0]
+    s = evaluate_shapes(as_field(Disk((0.0, 0.0), r1).sdf), None, problem(interfaces=(Circle(r1),)), 256).to_json()["shapes"][0]
     assert s["interface_cd1"] < 1e-4
 
 
@@ -99,7 +99,7 @@ def test_boundary_overlap_strip_crossing_a_disk_design_region():
     R, w = 0.8, 0.2
     P = Problem("t", BOX2, design_region=Disk((0.0, 0.0), R))
     strip = lambda x, z=None: x[:, 1].abs() - w
-    s = evaluate_shapes(strip, None, P, 256)["shapes"][0]
+    s = evaluate_shapes(strip, None, P, 256).to_json()["shapes"][0]
     exact = 4 * math.asin(w / R) / (2 * math.pi)
     assert s["boundary_overlap"] == pytest.approx(exact, abs=0.01)
 
@@ -108,7 +108,7 @@ def test_boundary_overlap_strip_crossing_a_rectangle_design_region():
     # E = [-0.9, 0.9] x [-0.4, 0.4] (perimeter 5.2); the strip |y| <= 0.1 covers 2 x 0.2 of it.
     P = Problem("t", Box((-1.0, -0.5), (1.0, 0.5)), design_region=Rect((-0.9, -0.4), (0.9, 0.4)))
     strip = lambda x, z=None: x[:, 1].abs() - 0.1
-    s = evaluate_shapes(strip, None, P, 256)["shapes"][0]
+    s = evaluate_shapes(strip, None, P, 256).to_json()["shapes"][0]
     assert s["boundary_overlap"] == pytest.approx(0.4 / 5.2, abs=0.005)
     # and the volume outside: the strip outside E is 2 x (0.1 x 0.2) of vol(X \ E) = 2 - 1.44
     # node counting moves each straight edge of the two 0.1 x 0.2 pieces by at most h / 2
@@ -122,7 +122,7 @@ def test_boundary_overlap_counts_a_shape_boundary_coinciding_with_dE():
     bar = as_field(Rect((-0.9, -0.1), (0.9, 0.1)).sdf)
     res = 256
     h = 2 / res
-    s = evaluate_shapes(bar, None, P, res)["shapes"][0]
+    s = evaluate_shapes(bar, None, P, res).to_json()["shapes"][0]
     # the tolerance of one spacing can add h at each of the 4 ends of the two covered pieces
     assert 0.4 / 5.2 - 0.003 <= s["boundary_overlap"] <= (0.4 + 4 * h) / 5.2 + 0.003
     assert s["volume_outside"] == 0.0
@@ -149,29 +149,29 @@ def test_connected_interfaces_share():
     itf = VerticalSegments([-0.5, 0.5], 0.2)
     P = problem(interfaces=(itf,))
     bar = as_field(Rect((-0.5, -0.3), (0.5, 0.3)).sdf)  # both segments on its boundary
-    s = evaluate_shapes(bar, None, P, 128)["shapes"][0]
+    s = evaluate_shapes(bar, None, P, 128).to_json()["shapes"][0]
     assert s["connected_interfaces_share"] == 1.0
     assert s["interface_cd1"] < 1e-3
     two = union(Disk((-0.5, 0.0), 0.3).sdf, Disk((0.55, 0.0), 0.1).sdf)  # one interface each
-    s = evaluate_shapes(two, None, P, 128)["shapes"][0]
+    s = evaluate_shapes(two, None, P, 128).to_json()["shapes"][0]
     assert s["b0"] == 2 and s["connected_interfaces_share"] == 0.5
     # a segment within eps = 0.01 of a component counts; one 0.05 away does not
     near = union(Rect((-0.505, -0.3), (0.495, 0.3)).sdf)
-    assert evaluate_shapes(near, None, P, 256)["shapes"][0]["connected_interfaces_share"] == 1.0
+    assert evaluate_shapes(near, None, P, 256).to_json()["shapes"][0]["connected_interfaces_share"] == 1.0
     far = union(Rect((-0.5, -0.3), (0.45, 0.3)).sdf)
-    assert evaluate_shapes(far, None, P, 256)["shapes"][0]["connected_interfaces_share"] == 0.5
+    assert evaluate_shapes(far, None, P, 256).to_json()["shapes"][0]["connected_interfaces_share"] == 0.5
 
 
 def test_surface_strain_sphere_and_circle():
     r = 0.5
     P3 = Problem("t", Box((-1.0, -1.0, -1.0), (1.0, 1.0, 1.0)))
-    s = evaluate_shapes(as_field(Disk((0.0, 0.0, 0.0), r).sdf), None, P3, 32)["shapes"][0]
+    s = evaluate_shapes(as_field(Disk((0.0, 0.0, 0.0), r).sdf), None, P3, 32).to_json()["shapes"][0]
     assert s["surface_strain"] == pytest.approx(2 / r**2, rel=1e-6)
     assert s["b0"] == 1 and s["volume_outside"] == 0.0
-    s = evaluate_shapes(as_field(Disk((0.0, 0.0), 0.25).sdf), None, problem(), 64)["shapes"][0]
+    s = evaluate_shapes(as_field(Disk((0.0, 0.0), 0.25).sdf), None, problem(), 64).to_json()["shapes"][0]
     assert s["surface_strain"] == pytest.approx(1 / 0.25**2, rel=1e-6)
     # tiny circles are clipped at 1000
-    s = evaluate_shapes(as_field(Disk((0.0, 0.0), 0.02).sdf), None, problem(), 256)["shapes"][0]
+    s = evaluate_shapes(as_field(Disk((0.0, 0.0), 0.02).sdf), None, problem(), 256).to_json()["shapes"][0]
     assert s["surface_strain"] == 1000.0
 
 
@@ -188,7 +188,7 @@ def radial_family(radii):
 def test_diversity_identical_shapes_is_zero():
     f = radial_family([0.4, 0.4, 0.4])
     Z = torch.arange(3, dtype=torch.float64)[:, None]
-    r = evaluate_shapes(f, Z, problem(), 128)
+    r = evaluate_shapes(f, Z, problem(), 128).to_json()
     assert r["n_shapes"] == 3 and len(r["shapes"]) == 3
     assert r["diversity_mean"] == pytest.approx(0.0, abs=1e-9)
 
@@ -197,7 +197,7 @@ def test_diversity_concentric_circles_closed_form():
     radii = [0.2, 0.35, 0.6]
     f = radial_family(radii)
     Z = torch.arange(3, dtype=torch.float64)[:, None]
-    r = evaluate_shapes(f, Z, problem(), 256)
+    r = evaluate_shapes(f, Z, problem(), 256).to_json()
     # CD1 between concentric circles is |ri - rj| both ways, so CD2 = sqrt(2) |ri - rj|.
     D = np.sqrt(2) * np.abs(np.subtract.outer(radii, radii))
     exact = np.mean(np.sqrt(D.sum(1) / 2)) ** 2
@@ -218,8 +218,9 @@ def test_diversity_mean_function_and_single_shape():
 
 
 def test_tables():
-    r = evaluate_shapes(as_field(Disk((0.0, 0.0), 0.4).sdf), None, problem(interfaces=(Circle(0.4),)), 64)
-    t = format_table(r)
+    ev = evaluate_shapes(as_field(Disk((0.0, 0.0), 0.4).sdf), None, problem(interfaces=(Circle(0.4),)), 64)
+    r, t = ev.to_json(), ev.text()
+    assert format_table(r, ev.feasibility.text()) == t
     assert "CD1" in t and t.count("\n") == 3 + len(METRIC_NAMES) + 1 + 2
     assert t.splitlines()[-1] == "feasible shapes: 1 of 1"  # the disk through its own interface
     c = format_comparison_table([r, r], ["a", "b"])
@@ -234,7 +235,7 @@ def test_empty_shape_gives_strict_json():
 
     f = lambda x, z: x.norm(dim=-1) - z[:, 0]  # radius z; z = -1: empty
     Z = torch.tensor([[-1.0], [0.3], [0.5]], dtype=torch.float64)
-    r = evaluate_shapes(f, Z, problem(interfaces=(Circle(0.3),)), 64)
+    r = evaluate_shapes(f, Z, problem(interfaces=(Circle(0.3),)), 64).to_json()
     s0 = r["shapes"][0]
     assert s0["b0"] == 0 and s0["interface_cd1"] is None and s0["surface_strain"] is None
     json.dumps(r, allow_nan=False)
@@ -255,7 +256,7 @@ class RectMinusDisk(Rect):
 def test_components_in_design_region_split_by_an_obstacle():
     P = Problem("t", Box((-1.0, -0.5), (1.0, 0.5)), design_region=RectMinusDisk())
     strip = as_field(Rect((-0.9, -0.08), (0.9, 0.08)).sdf)  # runs through the obstacle
-    s = evaluate_shapes(strip, None, P, 512)["shapes"][0]
+    s = evaluate_shapes(strip, None, P, 512).to_json()["shapes"][0]
     assert s["b0"] == 1 and s["b0_in_design_region"] == 2
     assert s["disconnected_volume"] == 0.0
     cut = 2 * (0.08 * 0.06 + 0.01 * math.asin(0.8))  # strip cap disk
@@ -271,7 +272,7 @@ def test_volume_outside_off_interfaces_ignores_the_interface_tolerance(res):
     X = Box((-1.0, -0.5), (1.0, 0.5))
     P = Problem("t", X, design_region=Rect((-0.9, -0.4), (0.9, 0.4)), interfaces=(VerticalSegments([-0.9, 0.9], 0.4),))
     f = union(Rect((-0.903, -0.2), (0.903, 0.2)).sdf, Rect((-0.1, 0.3), (0.1, 0.45)).sdf)
-    s = evaluate_shapes(f, None, P, res)["shapes"][0]
+    s = evaluate_shapes(f, None, P, res).to_json()["shapes"][0]
     vol_out = 2.0 - 1.44
     h = 2.0 / res
     # node counting moves each of the bump's three outside edges by at most h / 2
@@ -289,12 +290,12 @@ def test_holes_of_the_shape_inside_the_design_region():
     hole = Disk((0.0, 0.0), 0.2)
     P = problem(design_region=csg.Difference(E2, hole))
     ring = lambda x, z=None: torch.maximum(x.norm(dim=1) - 0.6, 0.1 - x.norm(dim=1))
-    s = evaluate_shapes(ring, None, P, 128)["shapes"][0]
+    s = evaluate_shapes(ring, None, P, 128).to_json()["shapes"][0]
     assert (s["b0_in_design_region"], s["b1_in_design_region"], s["b2_in_design_region"]) == (1, 1, None)
     cut = lambda x, z=None: torch.maximum(ring(x), torch.minimum(0.05 - x[:, 1].abs(), x[:, 0]))  # open on the right
-    s = evaluate_shapes(cut, None, P, 128)["shapes"][0]
+    s = evaluate_shapes(cut, None, P, 128).to_json()["shapes"][0]
     assert (s["b0_in_design_region"], s["b1_in_design_region"]) == (1, 0)
     two = lambda x, z=None: torch.maximum(torch.maximum(x.norm(dim=1) - 0.8, 0.1 - (x - torch.tensor([0.5, 0.0], dtype=x.dtype)).norm(dim=1)),
                                           0.1 - (x + torch.tensor([0.5, 0.0], dtype=x.dtype)).norm(dim=1))
-    s = evaluate_shapes(two, None, problem(), 128)["shapes"][0]
+    s = evaluate_shapes(two, None, problem(), 128).to_json()["shapes"][0]
     assert (s["b0_in_design_region"], s["b1_in_design_region"]) == (1, 2)

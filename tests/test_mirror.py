@@ -9,8 +9,8 @@ from torch import nn
 
 from ginn.config import build_config
 from ginn.errors import ConfigError
-from ginn.eval.mirror import evaluate_mirror, focus_distance, reflected_direction, reflection_residual
 from ginn.tasks.mirror import MirrorTask, parse_mirror_params
+from ginn.tasks.mirror.optics import evaluate_mirror, focus_distance, reflected_direction, reflection_residual
 
 
 class Poly(nn.Module):
@@ -99,7 +99,7 @@ def test_stratified_samples_cover_aperture(gen):
 
 def test_finalize_writes_profile_and_figure(tmp_path):
     task = _task(focus=1.0, n_eval=11)
-    paths = task.finalize(Poly(0.25), tmp_path)
+    paths = task.results.finalize(Poly(0.25), tmp_path)
     names = sorted(p.name for p in paths)
     assert names == ["explorer.html", "mirror.png", "mirror_profile.csv", "mirror_profile.npy"]
     tab = np.load(tmp_path / "mirror_profile.npy")

@@ -1,7 +1,8 @@
 """Smoke test: every built-in problem trains for two iterations under every preset.
 
-Point budgets are shrunk (the presets' models, losses and schedules are kept) so that the whole
-set runs in the default suite; full-size runs are slow tests and documented results.
+Point budgets (and the connectedness loss's seed grid) are shrunk and the feasibility checks left
+out (the presets' models, losses and schedules are kept) so that the whole set runs in the default
+suite; the checks have tests of their own, full-size runs are slow tests and documented results.
 """
 
 import math
@@ -28,9 +29,12 @@ def cases():
 @pytest.mark.parametrize("name, preset", cases())
 def test_preset_trains_two_iterations(name, preset, tmp_path):
     spec = load_spec(name)
-    over = {"training": {"iterations": 2, "checkpoint_every": 1}}
+    over = {"training": {"iterations": 2, "checkpoint_every": 1, "feasibility_checks": 0}}
     if spec.kind == "shape":
         over["sampling"] = SMALL_SAMPLING
+        over["connectedness"] = {"grid": 8}  # the seed grid of the critical points
+    if spec.kind == "gray-scott":
+        over["params"] = {"grid": 16}
     cfg = spec.config(preset, over)
     task = make_task(spec, cfg)
     tr = Trainer(task, cfg, tmp_path, progress=False)

@@ -3,7 +3,6 @@
 import pytest
 import torch
 
-from ginn import fields
 from ginn.problems import load_spec
 from ginn.tasks import make_task
 
@@ -31,8 +30,8 @@ def test_every_shape_sees_every_interface():
     cfg = spec.config("demo", {"sampling": {"n_interface": 64}})
     task = make_task(spec, cfg)
     gen = torch.Generator().manual_seed(0)
-    pts = task.sample(4, {"interface", "normal"}, gen)
-    x, n = pts["interface"], pts["normals"]
+    batch = task.draw_batch(4, {"interface", "normal"}, gen)
+    x, n = batch.x["interface"], batch.attrs["normals"]
     assert x.shape == (4, 64, 2)
     for s in range(4):
         left, right = (x[s, :, 0] < 0), (x[s, :, 0] > 0)
@@ -53,7 +52,7 @@ def test_containment_power_reaches_the_losses():
     with torch.no_grad():  # shift the untrained field so that both constraints are violated somewhere
         model.core[-1].bias.fill_(-0.3)
     active = {"design_region", "obstacle"}
-    pts = task.sample(1, active, torch.Generator().manual_seed(3))  # what loss_terms draws with this seed
+    pts = task.draw_batch(1, active, torch.Generator().manual_seed(3)).x  # what loss_terms draws with this seed
     out = task.loss_terms(model, 0, active, torch.Generator().manual_seed(3))
     with torch.no_grad():
         f_out, f_obs = model(pts["outside"][0], None), model(pts["obstacle"][0], None)
@@ -82,7 +81,7 @@ def test_containment_slope_is_exact_for_sdfs_and_catches_flat_fields():
     # zero level set, which it does not have)
     flat = _FnField(lambda x: 0.0 * x[:, 0] + 2e-3)
     out = task.loss_terms(flat, 0, active, torch.Generator().manual_seed(5))
-    pts = task.sample(1, active, torch.Generator().manual_seed(5))
+    pts = task.draw_batch(1, active, torch.Generator().manual_seed(5)).x
     xo = pts["outside"][0]
     d_out = _depth_outside_obstacle_region(xo)
     expected = (2e-3 - d_out).clamp(max=0).pow(2).mean().item()
@@ -102,13 +101,13 @@ def test_surface_samples_outside_the_design_region_are_penalised_by_their_depth(
     disk = _FnField(lambda x: (x - c).norm(dim=-1) - 0.3)
     gen = torch.Generator().manual_seed(3)
     out = task.loss_terms(disk, 0, {"design_region"}, gen)
-    pts = task.sample(1, {"design_region"}, torch.Generator().manual_seed(3))
-    xo = pts["outside"][0]
+    batch = task.draw_batch(1, {"design_region"}, torch.Generator().manual_seed(3))
+    xo = batch.x["outside"][0]
     fo = disk(xo) - _depth_outside_obstacle_region(xo)
     # the surface samples: recompute them as the task does
-    v = fields.evaluate(disk, pts["domain"][0], None, grad=True, create_graph=False)
-    xb, mask = task.boundary_points(disk, None, pts["domain"], v.f[None], v.grad[None])
-    xb = xb[0][mask[0]]
+    batch.evaluate(disk)
+    srf = batch.surface()
+    xb = srf.x[0][srf.converged[0]]
     beyond = xb[xb[:, 0] > 0.9]
     assert beyond.shape[0] > 5 and ((beyond - c).norm(dim=-1) - 0.3).abs().max() < 1e-5
     depth = _depth_outside_obstacle_region(beyond)
@@ -124,8 +123,9 @@ def test_away_from_interfaces_measures_the_distance_to_them():
     task = make_task(spec, spec.config("demo", {}))
     pts = torch.tensor([[-0.85, 0.0], [-0.75, 0.1], [0.89, 0.39], [0.0, 0.0], [0.9, 0.45]])
     # distances: 0.05, 0.15, 0.01, 0.9, 0.05 (to the end point (0.9, 0.4))
-    assert task._away_from_interfaces(pts, 0.1).tolist() == [False, True, False, True, False]
-    assert task._away_from_interfaces(pts, 0.0).all()
+    strain = next(c for c in task.constraints if c.name == "strain")
+    assert strain.away_from_interfaces(pts, 0.1).tolist() == [False, True, False, True, False]
+    assert strain.away_from_interfaces(pts, 0.0).all()
 
 
 
@@ -137,6 +137,6 @@ def test_without_a_floor_the_design_region_loss_is_the_papers():
     c = torch.tensor([0.8, 0.0])
     disk = _FnField(lambda x: (x - c).norm(dim=-1) - 0.3)
     out = task.loss_terms(disk, 0, {"design_region"}, torch.Generator().manual_seed(3))
-    xo = task.sample(1, {"design_region"}, torch.Generator().manual_seed(3))["outside"][0]
+    xo = task.draw_batch(1, {"design_region"}, torch.Generator().manual_seed(3)).x["outside"][0]
     expected = disk(xo).clamp(max=0).pow(2).mean().item()
     assert expected > 0 and out["design_region"].item() == pytest.approx(expected, rel=1e-6)

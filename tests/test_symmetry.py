@@ -136,13 +136,13 @@ def test_symmetry_verdict():
     box = Box((-1.0, -1.0), (1.0, 1.0))
     P = Problem("t", box, interfaces=(Circle((0.0, 0.0), 0.5),), symmetry=Symmetry(rotation=Rotation((0.0, 0.0), 3)))
     ok = check_feasibility(_disk((0.0, 0.0), 0.5), None, P, 128)
-    assert ok["feasible"] == 1 and ok["ratios"]["symmetry"] < 1e-3
+    assert ok.feasible == 1 and ok.ratios["symmetry"] < 1e-3
     # displaced by 0.006: CD1 = 0.006 / sqrt(2) = 4.2e-3 passes; the image under the rotation is
     # displaced by 0.006 sqrt(3) from it, at RMS distance 0.006 sqrt(3) / sqrt(2) = 7.3e-3
     off = check_feasibility(_disk((0.006, 0.0), 0.5), None, P, 128)
-    assert off["feasible"] == 0 and set(off["violations"][0]) == {"symmetry"}
-    d = off["violations"][0]["symmetry"]
-    assert d["bound"] == pytest.approx(5e-3) and d["value"] == pytest.approx(0.006 * math.sqrt(1.5), rel=0.03)
+    assert off.feasible == 0 and set(off.violations[0]) == {"symmetry"}
+    d = off.violations[0]["symmetry"]
+    assert d.bound == pytest.approx(5e-3) and d.value == pytest.approx(0.006 * math.sqrt(1.5), rel=0.03)
     good = {"interface_cd1": 1e-3, "b0_in_design_region": 1, "connected_interfaces_share": 1.0, "volume_outside": 0.0}
     assert violations({**good, "symmetry_error": 4.9e-3}, P) == {}
     assert set(violations({**good, "symmetry_error": 5.1e-3}, P)) == {"symmetry"}

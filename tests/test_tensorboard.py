@@ -28,6 +28,7 @@ def _records(run_dir) -> list[dict]:
     return [json.loads(line) for line in (run_dir / "metrics.jsonl").read_text().splitlines()]
 
 
+@pytest.mark.long
 def test_scalars_images_and_steps_match_metrics_jsonl(tmp_path):
     spec, cfg = runs.resolve("obstacle", "demo", {"training": {"iterations": 12}}, sets=SMALL)
     out = runs.train(spec, cfg, tmp_path / "run", progress=False)
@@ -79,7 +80,7 @@ def test_log_must_keep_jsonl_and_needs_the_package(monkeypatch):
     with pytest.raises(ConfigError, match="training.log"):
         runs.resolve("obstacle", "demo", sets=["training.log=[tensorboard]"])
     spec, cfg = runs.resolve("obstacle", "demo", sets=SMALL)
-    monkeypatch.setattr("ginn.train.trainer.tensorboard_available", lambda: False)
+    monkeypatch.setattr("ginn.train.callbacks.tensorboard_available", lambda: False)
     from ginn.tasks import make_task
     from ginn.train.trainer import Trainer
 

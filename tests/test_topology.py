@@ -32,7 +32,7 @@ from ginn.topology import (
     make_connectedness_loss,
     trace_surface_network,
 )
-from ginn.topology.connectedness import ShapeGraph, saddle_penalties
+from ginn.topology.penalties import ShapeGraph, saddle_penalties
 
 DT = torch.float64
 
@@ -676,7 +676,7 @@ def test_anchor_is_each_paths_last_candidate_in_the_region():
 def test_paths_are_traced_only_from_saddles_in_E_with_the_same_penalties():
     """Paths from a saddle outside E join nothing (shape_components, saddle_penalties): tracing
     from the saddles in E alone gives exactly the other paths, the same components and penalties."""
-    from ginn.topology.connectedness import batch_penalties
+    from ginn.topology.penalties import batch_penalties
 
     f = blobs([[-0.7, 0.0], [-0.1, 0.0], [0.35, 0.2], [0.8, -0.1]], 0.18)
     region = _HalfPlane(-0.3)

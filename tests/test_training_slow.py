@@ -47,7 +47,7 @@ def test_obstacle_quick_preset_meets_the_acceptance_bounds():
     from ginn.eval.shapes import evaluate_shapes
 
     task, res = train("obstacle", "quick", {})
-    ev = evaluate_shapes(res.model, task.Z, task.problem, resolution=256)
+    ev = evaluate_shapes(res.model, task.Z, task.problem, resolution=256).to_json()
     assert len(ev["shapes"]) == 16
     assert all(s["b0"] == 1 and s["connected_interfaces_share"] == 1.0 for s in ev["shapes"])
     assert ev["mean"]["interface_cd1"] <= 5e-3
@@ -82,7 +82,7 @@ def test_softplus_generative_obstacle_collapses_without_diversity():
                 "diversity": {"eps": 0.01},
                 "training": {"iterations": 1000, "lr_decay_every": 1000, "threads": 1}}
         task, res = train("obstacle", "quick", over)
-        ev = evaluate_shapes(res.model, task.Z, task.problem, resolution=256)
+        ev = evaluate_shapes(res.model, task.Z, task.problem, resolution=256).to_json()
         assert ev["mean"]["b0"] >= 1  # non-empty shapes
         return ev["diversity_mean"]
 

@@ -11,14 +11,20 @@ The public API, re-exported here (everything else is internal and may change):
 * geometry: :class:`Box`, :class:`Region`, :class:`Interface`, primitives, CSG, meshes, samplers,
   symmetries (:class:`Mirror`, :class:`Rotation`, :class:`Symmetry`)
 * problems: :class:`Problem`, :class:`ProblemSpec`, :func:`load_spec`, :func:`list_problems`
-* training: :class:`Task`, :class:`ShapeTask`, :class:`Trainer`, :func:`make_task`, :data:`TASKS`
+* constraints: :class:`Constraint` (one object per term of a shape problem), :class:`SampleSet`,
+  :class:`Stage`, :class:`Verdict`, :class:`Violation`, :func:`shape_constraints`
+* training: :class:`Task`, :class:`Results`, :class:`ShapeTask`, :class:`Trainer`, :class:`Callback`
+  (its plug-ins), :func:`make_task`, :data:`TASKS`
 * losses: the constraint losses, :func:`diversity`, :func:`project_to_zero`
-* evaluation: :func:`evaluate_shapes`, :func:`check_feasibility` (the problem's tolerances)
+* evaluation: :func:`evaluate_shapes`, :func:`check_feasibility` (the problem's tolerances), their
+  results :class:`ShapeEvaluation`, :class:`ShapeMetrics`, :class:`FeasibilitySummary`
 """
 
-from . import fields
+from . import constraints, fields
 from .config import RunConfig, build_config
+from .constraints import Constraint, SampleSet, Stage, Verdict, Violation, shape_constraints
 from .eval.feasibility import check_feasibility
+from .eval.results import FeasibilitySummary, ShapeEvaluation, ShapeMetrics
 from .eval.shapes import evaluate_shapes
 from .geometry import (
     AABox,
@@ -69,7 +75,7 @@ from .models import MLP, FourierMLP, NeuralField, PeriodicEncoding, ResMLP, Sire
 from .problems import Problem, ProblemSpec, list_problems, load_spec
 from .runs import Run, evaluate, fit, load_run, resolve
 from .tasks import TASKS, ShapeTask, make_task
-from .train import Task, Trainer
+from .train import Callback, Results, Task, Trainer
 from .version import __version__
 
 __all__ = [
@@ -83,8 +89,9 @@ __all__ = [
     "sample_box", "sample_inside", "sample_outside", "sample_interfaces", "sample_band",
     "Mirror", "Rotation", "Symmetry",
     "Problem", "ProblemSpec", "load_spec", "list_problems",
-    "Task", "ShapeTask", "Trainer", "make_task", "TASKS",
+    "constraints", "Constraint", "SampleSet", "Stage", "Verdict", "Violation", "shape_constraints",
+    "Task", "Results", "ShapeTask", "Trainer", "Callback", "make_task", "TASKS",
     "DesignRegionLoss", "ObstacleLoss", "InterfaceLoss", "NormalLoss", "EikonalLoss", "MeanCurvatureLoss",
     "StrainLoss", "diversity", "project_to_zero",
-    "evaluate_shapes", "check_feasibility",
+    "evaluate_shapes", "check_feasibility", "ShapeEvaluation", "ShapeMetrics", "FeasibilitySummary",
 ]

@@ -8,8 +8,8 @@ Python front door (:func:`fit`, :func:`evaluate`) and every sweep trial::
     run = load_run(outcome.run_dir)                     # the trained model back from the checkpoint
     metrics = evaluate(outcome.run_dir)                 # what `ginn eval` writes to metrics.json
 
-Kind-specific work (what to evaluate, export or draw) is the task's (:class:`ginn.train.task.Task`
-hooks); nothing here switches on the problem kind.
+Kind-specific work (what to evaluate, export, draw or show) is the task's
+(:class:`ginn.train.task.Results`); nothing here switches on the problem kind.
 """
 
 from __future__ import annotations
@@ -24,12 +24,8 @@ from torch import Tensor, nn
 
 from .config import RunConfig, build_config, deep_merge, parse_set, with_overrides
 from .errors import ConfigError, GinnError
-from .eval.feasibility import format_feasibility
 from .problems import ProblemSpec, load_spec
 from .tasks import make_task
-from .tasks.gray_scott import GrayScottTask
-from .tasks.mirror import MirrorTask
-from .tasks.shape import ShapeTask
 from .train.checkpoint import load_checkpoint
 from .train.distributed import DistContext, on_main
 from .train.rundir import (
@@ -43,8 +39,6 @@ from .train.rundir import (
 )
 from .train.task import Task
 from .train.trainer import Trainer
-from .viz.explorer import write_explorer
-from .viz.explorer_pinn import write_mirror_view, write_pattern_explorer
 
 __all__ = [
     "Run", "Outcome", "is_spec_file", "resolve", "train", "resume", "fit", "load_run",
@@ -132,17 +126,12 @@ def _finish_run(trainer: Trainer, task: Task, run_dir: Path, results: bool, say:
     if not trainer.is_main or res.status != "completed":  # ranks > 0 write nothing; interrupted or stopped
         return out
     say(f"trained {res.step} iterations in {res.seconds:.1f} s" + (f" ({res.reason})" if res.reason else ""))
-    if trainer.restored is not None:
-        r = trainer.restored
-        what = (f"the mean of the weights over iterations {r['from_step'] - r['mean_iterations'] + 1}-{r['from_step']}"
-                if r["mean"] else f"the weights of iteration {r['from_step']}")
-        say(f"kept {what}: {r['feasible']} of {r['shapes']} shapes feasible there, "
-            f"{r['instead_of']} at the end (training.keep_most_feasible)")
-    if trainer.feasibility is not None:
-        say(f"{format_feasibility(trainer.feasibility)}\n(checked on a coarse grid; `ginn eval` for every metric)")
+    for cb in trainer.callbacks:
+        for line in cb.report():
+            say(line)
     if results:
         try:
-            out.results = task.finalize(trainer.model, run_dir)
+            out.results = task.results.finalize(trainer.model, run_dir)
         except OSError as e:
             write_status(run_dir, "failed", res.step, res.seconds, f"writing the results: {e.strerror}")
             raise io_error(e, e.filename or run_dir) from None
@@ -177,7 +166,7 @@ def train(
         results: write the task's result files (shapes, figures) at the end (None:
             ``cfg.output.results``; False is recorded in the config, so a resume honours it).
         hooks: ``hook(trainer, step, losses)`` after every step; a hook may raise
-            :class:`ginn.train.trainer.StopRun` to end the run with its status.
+            :class:`ginn.train.callbacks.StopRun` to end the run with its status.
         dist: the torchrun context (None: one process); only rank 0 writes.
         say: where progress messages go (the CLI prints them).
         prepare: called with the run directory after its files are written, before training.
@@ -345,9 +334,10 @@ def evaluate(run_dir: str | Path, resolution: int | None = None, device: str | N
 def evaluate_with_text(run_dir: str | Path, resolution: int | None = None, device: str | None = None) -> tuple[dict, str]:
     """:func:`evaluate` and the task's readable text of the metrics."""
     run = load_run(run_dir, device=device)
-    metrics = run.task.evaluate(run.model, resolution=resolution, out_dir=run.path)
+    ev = run.task.results.evaluate(run.model, resolution=resolution, out_dir=run.path)
+    metrics = ev.to_json()
     _write_json(run.path / "metrics.json", metrics)
-    return metrics, run.task.format_metrics(metrics) + f"\n(written to {run.path / 'metrics.json'})"
+    return metrics, ev.text() + f"\n(written to {run.path / 'metrics.json'})"
 
 
 def export(run_dir: str | Path, latents: list[list[float]] | None = None, resolution: int | None = None,
@@ -356,13 +346,13 @@ def export(run_dir: str | Path, latents: list[list[float]] | None = None, resolu
     ``out`` (default ``RUN/export``)."""
     run = load_run(run_dir)
     out_dir = Path(out) if out else run.path / "export"
-    return run.task.export(run.model, latents or None, out_dir, resolution, mesh_format)
+    return run.task.results.export(run.model, latents or None, out_dir, resolution, mesh_format)
 
 
 def view(run_dir: str | Path, out: str | Path | None = None, steps: int = 64) -> Path:
     """The latent-space explorer of a completed run (``ginn view``): one self-contained HTML file
-    (:mod:`ginn.viz.explorer` for shapes, :mod:`ginn.viz.explorer_pinn` for Gray-Scott patterns and
-    the mirror), ``RUN/figures/explorer.html`` unless ``out`` says otherwise."""
+    (the task's :meth:`~ginn.train.task.Results.view`), ``RUN/figures/explorer.html`` unless
+    ``out`` says otherwise."""
     run_dir = Path(run_dir)
     st = read_status(run_dir)
     if st.status not in ("completed", "unknown"):
@@ -372,19 +362,10 @@ def view(run_dir: str | Path, out: str | Path | None = None, steps: int = 64) ->
         raise ConfigError(f"--steps must be at least 1, got {steps}")
     run = load_run(run_dir)
     path = Path(out) if out is not None else run.path / "figures" / "explorer.html"
-    title = f"{run.spec.name}: {run.path.name}"
-    task = run.task
-    if isinstance(task, ShapeTask):
-        return write_explorer(run.model, task.Z, task.problem, path, steps=steps, title=title)
-    if isinstance(task, GrayScottTask):
-        Z = task.Z if task.Z is not None else task.default_latents()
-        return write_pattern_explorer(run.model, Z, task.params.gs, path, steps=steps, title=title)
-    if isinstance(task, MirrorTask):
-        return write_mirror_view(run.model, task.params, path, title=title)
-    raise ConfigError(f"{run_dir}: ginn view has no view for a {task.kind} problem (`ginn plot` draws its figures)")
+    return run.task.results.view(run.model, path, steps=steps, title=f"{run.spec.name}: {run.path.name}")
 
 
 def plot(run_dir: str | Path, resolution: int | None = None) -> list[Path]:
     """The figures of a run (``ginn plot``)."""
     run = load_run(run_dir)
-    return run.task.plot(run.model, run.path, resolution)
+    return run.task.results.plot(run.model, run.path, resolution)

@@ -1,15 +1,16 @@
-"""Evaluation of trained models: the paper's Appendix B.1 shape metrics, and one evaluator per kind
-of problem with a known answer (Plateau's minimal surface, the parabolic mirror, Gray-Scott
-patterns checked by an independent solver). References live in :mod:`ginn.eval.reference`."""
+"""Evaluation of trained shapes: the paper's Appendix B.1 metrics, the verdict of a problem's
+tolerances on them, their typed results, and the comparison with a known answer (Plateau's minimal
+surface; references in :mod:`ginn.eval.reference`). The other kinds' evaluations live in their
+task packages (:mod:`ginn.tasks.mirror`, :mod:`ginn.tasks.gray_scott`)."""
 
 from .feasibility import FeasibilityCheck, check_feasibility, format_feasibility
-from .gray_scott import Thresholds, verify_fields, verify_run
-from .mirror import evaluate_mirror
 from .plateau import evaluate_plateau
-from .shapes import METRIC_LABELS, evaluate_shapes, format_comparison_table, format_table
+from .report import METRIC_LABELS, format_comparison_table, format_table
+from .results import FeasibilitySummary, ShapeEvaluation, ShapeMetrics
+from .shapes import evaluate_shapes
 
 __all__ = [
     "evaluate_shapes", "format_table", "check_feasibility", "FeasibilityCheck", "format_feasibility",
-    "format_comparison_table", "METRIC_LABELS",
-    "evaluate_plateau", "evaluate_mirror", "verify_run", "verify_fields", "Thresholds",
+    "format_comparison_table", "METRIC_LABELS", "FeasibilitySummary", "ShapeEvaluation", "ShapeMetrics",
+    "evaluate_plateau",
 ]

@@ -2,62 +2,34 @@
 
 The front door of ``ginn eval``::
 
-    result = evaluate_shapes(field, Z, problem, resolution=256)
-    json.dump(result, open(run_dir / "metrics.json", "w"), indent=2)
-    print(format_table(result))
-    print(format_comparison_table([r1, r2], ["run1", "run2"]))   # --table
+    result = evaluate_shapes(field, Z, problem, resolution=256)      # a ShapeEvaluation
+    json.dump(result.to_json(), open(run_dir / "metrics.json", "w"), indent=2)
+    print(result.text())
+    print(format_comparison_table([r1.to_json(), r2.to_json()], ["run1", "run2"]))   # --table
 """
 
 from __future__ import annotations
 
 import math
 import time
+from collections.abc import Sequence
 
 import numpy as np
 import torch
 from torch import Tensor
 
 from ..config import default_resolution
+from ..constraints.catalog import problem_verdicts
+from ..constraints.verdict import Verdict
 from ..extract.boundary import Boundary
 from ..fields import Field
 from ..problems.problem import Problem
-from .feasibility import format_feasibility, summarize
-from .metrics import (
-    METRIC_NAMES,
-    chamfer_matrix,
-    diversity_from_matrix,
-    extract_shape,
-    prepare_context,
-    shape_metrics,
-)
+from .feasibility import measured, summarize
+from .metrics import chamfer_matrix, diversity_from_matrix, extract_shape, prepare_context, shape_metrics
+from .report import METRIC_LABELS, format_comparison_table, format_table
+from .results import METRIC_NAMES, ShapeEvaluation
 
 __all__ = ["evaluate_shapes", "format_table", "format_comparison_table", "METRIC_LABELS"]
-
-#: Paper-style row labels (arrow: which direction is better).
-METRIC_LABELS = {
-    "b0": "↓ b0(Ω)",
-    "b0_in_design_region": "↓ b0(Ω ∩ E)",
-    "b1_in_design_region": "b1(Ω ∩ E) (holes / tunnels)",
-    "b2_in_design_region": "b2(Ω ∩ E) (cavities)",
-    "genus": "genus of the mesh",
-    "disconnected_volume": "↓ vol(DC(Ω)) / vol(E)",
-    "disconnected_volume_in_design_region": "↓ vol(DC(Ω ∩ E)) / vol(E)",
-    "connected_interfaces_share": "↑ CI(Ω, I) / n_I",
-    "interface_cd1": "↓ CD1(Ω, I)",
-    "boundary_overlap": "↓ vol(Ω ∩ ∂E) / vol(∂E)",
-    "volume_outside": "↓ vol(Ω \\ E) / vol(X \\ E)",
-    "volume_outside_off_interfaces": "↓ vol(Ω \\ (E ∪ I_h)) / vol(X \\ E)",
-    "surface_strain": "↓ E_strain(Ω)",
-    "symmetry_error": "↓ symmetry error",
-    "diversity_mean": "↑ δ_mean(S)",
-}
-
-
-def _finite_or_none(v):
-    """JSON has no infinity: undefined values (e.g. the CD1 of an empty shape) become None."""
-    if isinstance(v, float) and not math.isfinite(v):
-        return None
-    return v
 
 
 def _mean(values: list) -> float | None:
@@ -77,7 +49,8 @@ def evaluate_shapes(
     n_diversity_samples: int = 2048,
     seed: int = 0,
     timings: dict | None = None,
-) -> dict:
+    verdicts: Sequence[Verdict] | None = None,
+) -> ShapeEvaluation:
     """Every metric of Appendix B.1 for the shapes ``{f(., z_i) <= 0}``.
 
     Arguments:
@@ -89,15 +62,15 @@ def evaluate_shapes(
         n_interface_samples, n_strain_samples, n_diversity_samples: Monte-Carlo sample counts.
         seed: seed of every sample (results are deterministic).
         timings: optional dict that receives the seconds spent per stage / metric.
+        verdicts: what judges the shapes (None: :func:`ginn.constraints.problem_verdicts`).
 
     Returns:
-        ``{"problem": name, "n_shapes": S, "shapes": [{metric: value}], "mean": {metric: value},
-        "diversity_mean": value or None, "feasibility": :func:`ginn.eval.feasibility.summarize`}``
-        (strict JSON; ``None`` where a metric does not apply or
-        is undefined, e.g. the CD1 of an empty shape; means skip ``None``; the diversity is taken
-        over the non-empty shapes).
+        :class:`ginn.eval.results.ShapeEvaluation`: the metrics of every shape (``None`` where a
+        metric does not apply or is undefined, e.g. the CD1 of an empty shape), their means
+        (skipping ``None``), the diversity over the non-empty shapes and the verdict.
     """
     resolution = int(resolution or default_resolution("eval", problem.dim))
+    judges = problem_verdicts(problem) if verdicts is None else list(verdicts)
     tm = timings if timings is not None else {}
     t0 = time.perf_counter()
     ctx = prepare_context(problem, resolution, n_interface_samples=n_interface_samples, seed=seed)
@@ -113,7 +86,8 @@ def evaluate_shapes(
             t = time.perf_counter()
             sh = extract_shape(field, z, ctx.grid, adaptive=adaptive, timings=tm)
             tm["extract"] = tm.get("extract", 0.0) + time.perf_counter() - t
-            shapes.append(shape_metrics(sh, ctx, field, z, n_strain_samples=n_strain_samples, seed=seed + i, timings=tm))
+            m = shape_metrics(sh, ctx, field, z, n_strain_samples=n_strain_samples, seed=seed + i, timings=tm)
+            shapes.append(measured(m, judges, sh, ctx, field, z))
             if len(codes) > 1:
                 # keep a compact copy (float32 / int32, no KD-tree) for the diversity
                 b = sh.boundary
@@ -130,60 +104,8 @@ def evaluate_shapes(
         t = time.perf_counter()
         div = diversity_from_matrix(chamfer_matrix([boundaries[i] for i in keep], [samples[i] for i in keep]))
         tm["diversity_mean"] = tm.get("diversity_mean", 0.0) + time.perf_counter() - t
-    shapes = [{k: _finite_or_none(v) for k, v in s.items()} for s in shapes]
-    mean = {k: _mean([s[k] for s in shapes]) for k in METRIC_NAMES}
-    return {
-        "problem": problem.name,
-        "n_shapes": len(shapes),
-        "shapes": shapes,
-        "mean": mean,
-        "diversity_mean": div,
-        "feasibility": summarize(shapes, problem, div),
-    }
+    mean = {k: _mean([s.get(k) for s in shapes]) for k in METRIC_NAMES}
+    summary = summarize(shapes, problem, div, judges)
+    return ShapeEvaluation(problem.name, shapes, mean, div, summary, verdicts=judges)
 
 
-def _fmt(v) -> str:
-    if v is None:
-        return "–"
-    v = float(v)
-    if not math.isfinite(v):
-        return str(v)
-    if v == 0:
-        return "0"
-    if abs(v) >= 1e4 or abs(v) < 1e-3:
-        return f"{v:.2e}"
-    return f"{v:.4g}"
-
-
-def format_table(result: dict) -> str:
-    """A readable markdown table of one evaluation: mean, min and max over the shapes."""
-    lines = [
-        f"problem: {result.get('problem')}   shapes: {result.get('n_shapes')}",
-        "",
-        "| metric | mean | min | max |",
-        "|---|---|---|---|",
-    ]
-    for k in METRIC_NAMES:
-        vals = [s.get(k) for s in result.get("shapes", []) if s.get(k) is not None]
-        lo = min(vals) if vals else None
-        hi = max(vals) if vals else None
-        lines.append(f"| {METRIC_LABELS[k]} | {_fmt(result['mean'].get(k))} | {_fmt(lo)} | {_fmt(hi)} |")
-    lines.append(f"| {METRIC_LABELS['diversity_mean']} | {_fmt(result.get('diversity_mean'))} | | |")
-    if result.get("feasibility") is not None:
-        lines += ["", format_feasibility(result["feasibility"])]
-    return "\n".join(lines)
-
-
-def format_comparison_table(results: list[dict], names: list[str]) -> str:
-    """Paper-style markdown table (Tables 3 and 4): one row per metric (means over shapes), one
-    column per run."""
-    if len(results) != len(names):
-        raise ValueError("one name per result")
-    lines = ["| metric | " + " | ".join(names) + " |", "|---|" + "---|" * len(names)]
-    lines.append("| shapes | " + " | ".join(str(r.get("n_shapes")) for r in results) + " |")
-    for k in METRIC_NAMES:
-        lines.append(f"| {METRIC_LABELS[k]} | " + " | ".join(_fmt(r["mean"].get(k)) for r in results) + " |")
-    lines.append(
-        f"| {METRIC_LABELS['diversity_mean']} | " + " | ".join(_fmt(r.get("diversity_mean")) for r in results) + " |"
-    )
-    return "\n".join(lines)

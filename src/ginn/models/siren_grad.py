@@ -127,7 +127,7 @@ class _SirenValueGrad(torch.autograd.Function):
     def forward(ctx, h0: Tensor, d: int, compiled: bool, *params: Tensor):
         weights, biases = list(params[0:-2:2]), list(params[1:-2:2])
         w, b = params[-2], params[-1]
-        f, g, S, C, U, D = _kernel(0, compiled)(h0, d, weights, biases, w, b)
+        f, g, S, C, U, D = KERNELS.get(0, compiled)(h0, d, weights, biases, w, b)
         ctx.d = d
         ctx.L = len(weights)
         ctx.compiled = compiled
@@ -146,7 +146,7 @@ class _SirenValueGrad(torch.autograd.Function):
         C = list(saved[2 + 2 * L : 2 + 3 * L])
         U = list(saved[2 + 3 * L : 2 + 4 * L])
         D = list(saved[2 + 4 * L : 1 + 5 * L]) + [w]
-        dh0, dW, db, dw, db_out = _kernel(1, ctx.compiled)(f_bar, g_bar, d, weights, w, S, C, U, D,
+        dh0, dW, db, dw, db_out = KERNELS.get(1, ctx.compiled)(f_bar, g_bar, d, weights, w, S, C, U, D,
                                                            ctx.needs_input_grad[0])
         grads: list[Tensor | None] = [dh0, None, None]
         for Wg, bg in zip(dW, db):
@@ -192,37 +192,42 @@ def block_rows(width: int) -> int:
     return max(256, (1 << 20) // max(width, 1))
 
 
-_EAGER = (_forward, _backward)
-_compiled: tuple | None = None  # the two kernels under torch.compile, made at their first use
-_compile_failed = False
+class Kernels:
+    """The two recursions, eager and compiled: one instance per process (:data:`KERNELS`), since
+    torch keeps a compiled function's code per function object.
 
+    Attributes:
+        compiled: the forward and backward recursions under ``torch.compile``, made at their first use.
+        failed: compiling failed in this process: every later call runs eagerly.
+    """
 
-def _kernel(which: int, compiled: bool):
-    """The forward (``which = 0``) or backward (1) recursion, compiled or eager."""
-    global _compiled
-    if not compiled or _compile_failed:
-        return _EAGER[which]
-    if _compiled is None:
-        # static shapes: the code generated for a kernel depends only on its shapes (a dynamic
-        # kernel's depends on the sizes it first saw), so a resumed run, a fresh process, computes
-        # with the uninterrupted run's kernels; a training pass has one shape for the whole run
-        _compiled = (torch.compile(_forward, dynamic=False), torch.compile(_backward, dynamic=False))
-    return _Guarded(which)
+    def __init__(self) -> None:
+        self.eager = (_forward, _backward)
+        self.compiled: tuple | None = None
+        self.failed = False
 
+    def get(self, which: int, compiled: bool):
+        """The forward (``which = 0``) or backward (1) recursion, compiled or eager."""
+        if not compiled or self.failed:
+            return self.eager[which]
+        if self.compiled is None:
+            # static shapes: the code generated for a kernel depends only on its shapes (a dynamic
+            # kernel's depends on the sizes it first saw), so a resumed run, a fresh process, computes
+            # with the uninterrupted run's kernels; a training pass has one shape for the whole run
+            self.compiled = (torch.compile(_forward, dynamic=False), torch.compile(_backward, dynamic=False))
+        return lambda *args: self.call(which, *args)
 
-class _Guarded:
-    """Calls a compiled kernel; where compiling fails, switches this process to the eager kernels
-    (with one warning) and returns their result."""
-
-    def __init__(self, which: int):
-        self.which = which
-
-    def __call__(self, *args):
-        global _compile_failed
+    def call(self, which: int, *args):
+        """A compiled kernel; where compiling fails, this process switches to the eager kernels
+        (with one warning) and returns their result."""
         try:
-            return _compiled[self.which](*args)  # type: ignore[index]
+            return self.compiled[which](*args)  # type: ignore[index]
         except Exception as e:  # noqa: BLE001 - any failure of the compiler stack, e.g. no C++ compiler
-            _compile_failed = True
+            self.failed = True
             first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
             warnings.warn(f"torch.compile failed ({first[:200]}); the SIREN derivatives run uncompiled", stacklevel=2)
-            return _EAGER[self.which](*args)
+            return self.eager[which](*args)
+
+
+#: this process's kernels
+KERNELS = Kernels()

@@ -19,8 +19,8 @@ from ..config import RunConfig, build_config, config_to_dict, nested
 from ..errors import ConfigError, GinnError
 from ..problems import ProblemSpec
 from ..runs import evaluate, train
+from ..train.callbacks import StopRun
 from ..train.rundir import slug
-from ..train.trainer import StopRun
 from .objective import objective_value
 from .space import SearchSpace, check_space_keys, suggest
 

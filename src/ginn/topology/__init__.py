@@ -1,4 +1,5 @@
-"""Topology subsystem: critical points, surface network, connectedness losses, b0 and Betti numbers on grids.
+"""Topology subsystem: critical points, surface network, the topology losses on one grid base
+(connectedness, hole counts), b0 and Betti numbers on grids.
 
 Front door for the trainer::
 
@@ -16,10 +17,10 @@ import torch
 
 from ..config import ConnectednessConfig
 from ..geometry.base import Box, Region
-from .base import ConnectednessLossBase
+from .base import ConnectednessLossBase, GridTopologyLoss
 from .betti import betti_numbers, enclosed_components, mesh_genus
 from .components import b0, b0_of_mask, component_sizes, count_components, field_on_grid
-from .connectedness import ConnectednessLoss, Penalties, SurfaceNetworkLossOptions, saddle_penalties, shape_components
+from .connectedness import ConnectednessLoss, SurfaceNetworkLossOptions
 from .critical import (
     MAXIMUM,
     MINIMUM,
@@ -29,6 +30,7 @@ from .critical import (
     find_critical_points,
     newton_refine,
 )
+from .penalties import Penalties, ShapeGraph, saddle_penalties, shape_components
 from .persistent import DeathPoints, PersistenceOptions, PersistentHomologyLoss, death_points
 from .surface_network import PathOptions, SurfaceNetwork, trace_surface_network
 
@@ -67,6 +69,7 @@ def make_connectedness_loss(
 
 __all__ = [
     "make_connectedness_loss",
+    "GridTopologyLoss",
     "ConnectednessLossBase",
     "ConnectednessLoss",
     "PersistentHomologyLoss",
@@ -77,6 +80,7 @@ __all__ = [
     "CriticalPoints",
     "SurfaceNetwork",
     "Penalties",
+    "ShapeGraph",
     "DeathPoints",
     "MINIMUM",
     "SADDLE",

@@ -1,30 +1,10 @@
 """The surface-network connectedness loss (Appendix C.3, Algorithm 1), cheap across steps.
 
-Per shape (all numbers below are per shape; the batch loss is the *mean* over the ``S`` shapes,
-so that its weight does not depend on the batch size):
-
-1. **Components of the shape among the vertices.** A vertex is *inside* when ``f <= 0``. Because
-   ``f`` is monotone along an integral path, a surface-network edge lies entirely inside the shape
-   exactly when both its endpoints are inside; the components are the connected components of the
-   inside vertices under those edges (``scipy.sparse.csgraph.connected_components``). By Morse
-   theory every component of ``{f <= 0}`` contains a minimum, so inside groups without a minimum
-   (paths lost at the domain boundary) are discarded.
-2. **The augmented weighted graph G_a**, with every component contracted to one node (the
-   paper's weight-0 edges within a component): surface-network edges between a component and an
-   outside vertex, weighted by the part of the integral path that lies *outside* the shape (for
-   an SDF this is the distance from the saddle to the boundary, so a two-edge path
-   component-saddle-component has the length of the *gap between the boundaries*, which is the
-   ``d`` of the paper's ``p ~ 1/d``); edges between two outside vertices (their path length);
-   and the augmentation: an edge between every pair of outside vertices with their Euclidean
-   distance.
-3. **Penalties**: for every pair of components ``{c_i, c_j}`` the shortest path in G_a
-   (``scipy.sparse.csgraph.dijkstra`` from every component node), of length ``d_ij``; every saddle
-   on that path that is adjacent to a component on the path gets ``p_k += 1 / (d_ij + eps)``.
-   Pairs with no path, or whose path has no such saddle, are counted in
-   ``last_info["unreachable_pairs"]`` (the grid fallback below takes them). Then ``p`` is
-   normalised to sum 1 (per shape).
-4. **Loss** ``sum_k p_k f(x_k)`` with the saddle positions ``x_k`` held fixed (detached), so the
-   gradient moves the field, not the points.
+Per shape, the components of the shape among the critical points, the augmented weighted graph
+and the saddle penalties are :mod:`ginn.topology.penalties`; the loss is ``sum_k p_k f(x_k)`` with
+the saddle positions ``x_k`` held fixed (detached), so the gradient moves the field, not the
+points; the batch loss is the *mean* over the ``S`` shapes, so that its weight does not depend on
+the batch size.
 
 Design region: with ``restrict_to_design_region`` and a region, critical points outside it are
 removed from the graph (they neither form components nor receive penalties), as in the paper's
@@ -47,7 +27,6 @@ is not attempted: on a SIREN one optimiser step moves the flat minima by up to a
 domain (measured in the obstacle setting), so tracking them is neither cheap nor reliable, while
 the saddles the loss needs are well conditioned.
 """
-
 from __future__ import annotations
 
 import time
@@ -56,18 +35,13 @@ from dataclasses import field as dc_field
 
 import numpy as np
 import torch
-from scipy import sparse
-from scipy.sparse import csgraph
 from torch import Tensor
 
 from ..extract.grid import label_components
 from ..geometry.base import Box, Region
 from ..geometry.lookup import fast_membership
 from .base import ConnectednessLossBase
-from .components import field_on_grid
 from .critical import (
-    MINIMUM,
-    SADDLE,
     CriticalPointOptions,
     CriticalPoints,
     cell_size,
@@ -75,6 +49,7 @@ from .critical import (
     latents_of,
     newton_refine,
 )
+from .penalties import Penalties, batch_penalties
 from .persistent import death_points
 from .surface_network import PathOptions, SurfaceNetwork, trace_surface_network
 
@@ -104,245 +79,6 @@ class SurfaceNetworkLossOptions:
     seed: int = 0
 
 
-@dataclass
-class Penalties:
-    """Result of :func:`saddle_penalties` for one shape.
-
-    Attributes:
-        weights: normalised penalty per vertex ``(m,)`` (zeros when the shape is connected).
-        n_components: number of components of the shape found.
-        unreachable_pairs: component pairs the surface network cannot penalise: no path in G_a,
-            or a shortest path with no saddle next to a component on it.
-        labels: component of each vertex ``(m,)`` (-1 outside the shape or discarded).
-        raw_total: sum of the penalties before normalisation (``weights * raw_total`` are the
-            raw ``sum 1 / (d_ij + eps)``).
-    """
-
-    weights: np.ndarray
-    n_components: int
-    unreachable_pairs: int
-    labels: np.ndarray
-    raw_total: float = 0.0
-
-
-@dataclass
-class ShapeGraph:
-    """The surface network of one shape in local indices (input of :func:`saddle_penalties`).
-
-    Attributes:
-        x: vertex positions ``(m, d)``; f: values ``(m,)``; kind: ``MINIMUM/SADDLE/MAXIMUM``
-            ``(m,)``; valid: vertices kept (inside the design region) ``(m,)``.
-        start, end: path endpoints ``(P,)`` (end -1: reached no vertex).
-        length, outside_length: path arc lengths and their parts with ``f > 0`` ``(P,)``.
-        end_label: grid component (1..n_grid, 0 none) at the path's anchor ``(P,)`` (used when
-            the path reached no valid inside vertex).
-        vertex_label: grid component at each vertex ``(m,)`` (0 none).
-        n_grid: number of grid components (0 when the grid support is off).
-    """
-
-    x: np.ndarray
-    f: np.ndarray
-    kind: np.ndarray
-    valid: np.ndarray
-    start: np.ndarray
-    end: np.ndarray
-    length: np.ndarray
-    outside_length: np.ndarray
-    end_label: np.ndarray
-    vertex_label: np.ndarray
-    n_grid: int = 0
-
-
-def shape_components(g: ShapeGraph) -> tuple[np.ndarray, np.ndarray, int]:
-    """Components of ``{f <= 0}`` of one shape, from the surface network and the grid.
-
-    Nodes are the vertices and the grid components; they are joined by (i) paths that start at an
-    inside vertex and end at an inside vertex or (via its anchor) in a grid component (such a path
-    never leaves the shape, ``f`` being monotone along it), and (ii) an inside vertex and the grid
-    component at its position. A class is a component of the shape if it holds a grid component
-    or an inside minimum (Morse: every component that does not touch the domain boundary has one).
-
-    Returns:
-        ``labels`` of the vertices ``(m,)`` (``0..C-1``; -1 outside/invalid/discarded), the
-        component of each grid component ``(n_grid,)`` and ``C``.
-    """
-    m = g.f.shape[0]
-    inside = (g.f <= 0) & g.valid
-    n = m + g.n_grid
-    ends = np.where((g.end >= 0) & inside[np.maximum(g.end, 0)], g.end, -1)
-    ends = np.where((ends < 0) & (g.end_label > 0), m + g.end_label - 1, ends)
-    link = inside[g.start] & (ends >= 0)
-    u = [g.start[link]]
-    v = [ends[link]]
-    vl = inside & (g.vertex_label > 0)
-    u.append(np.nonzero(vl)[0])
-    v.append(m + g.vertex_label[vl] - 1)
-    u, v = np.concatenate(u), np.concatenate(v)
-    A = sparse.coo_matrix((np.ones(len(u)), (u, v)), shape=(n, n))
-    _, lab = csgraph.connected_components(A, directed=False)
-    member = np.concatenate([inside, np.ones(g.n_grid, dtype=bool)])
-    anchor = np.concatenate([inside & (g.kind == MINIMUM), np.ones(g.n_grid, dtype=bool)])
-    good = np.zeros(lab.max() + 1 if n else 0, dtype=bool)
-    good[lab[anchor]] = True
-    keep = np.unique(lab[member & good[lab]])
-    remap = np.full(lab.max() + 1 if n else 0, -1, dtype=np.int64)
-    remap[keep] = np.arange(len(keep))
-    labels = np.where(member[:m], remap[lab[:m]], -1)
-    return labels, remap[lab[m:]], int(len(keep))
-
-
-def saddle_penalties(g: ShapeGraph, eps: float) -> Penalties:
-    """Algorithm 1 on the augmented surface network of one shape.
-
-    Arguments:
-        g: :class:`ShapeGraph`.
-        eps: the ``eps`` of ``1 / (d + eps)``.
-
-    Returns:
-        :class:`Penalties`.
-    """
-    m = g.f.shape[0]
-    labels, grid_comp, C = shape_components(g)
-    weights = np.zeros(m)
-    if C <= 1:
-        return Penalties(weights, C, 0, labels)
-    outside = np.nonzero((g.f > 0) & g.valid)[0]
-    node = np.full(m, -1, dtype=np.int64)
-    node[labels >= 0] = labels[labels >= 0]
-    node[outside] = C + np.arange(len(outside))
-    N = C + len(outside)
-    W = np.full((N, N), np.inf)
-    if len(g.start):
-        a = node[g.start]
-        b = np.where(g.end >= 0, node[np.maximum(g.end, 0)], -1)
-        via_anchor = (b < 0) & (g.end_label > 0)
-        b = np.where(via_anchor, grid_comp[np.maximum(g.end_label - 1, 0)] if g.n_grid else -1, b)
-        ok = (a >= 0) & (b >= 0) & (a != b)
-        w = np.where((a >= C) & (b >= C), g.length, g.outside_length)
-        w = np.maximum(w, 1e-12)
-        np.minimum.at(W, (a[ok], b[ok]), w[ok])
-        np.minimum.at(W, (b[ok], a[ok]), w[ok])
-    if len(outside) > 1:
-        xo = g.x[outside]
-        D = np.linalg.norm(xo[:, None, :] - xo[None, :, :], axis=-1)
-        np.fill_diagonal(D, np.inf)
-        W[C:, C:] = np.minimum(W[C:, C:], np.maximum(D, 1e-12))
-    W[~np.isfinite(W)] = 0.0
-    dist, pred = csgraph.dijkstra(sparse.csr_matrix(W), directed=False, indices=np.arange(C), return_predecessors=True)
-    is_saddle = np.zeros(N, dtype=bool)
-    is_saddle[node[outside]] = g.kind[outside] == SADDLE
-    vertex_of = np.full(N, -1, dtype=np.int64)
-    vertex_of[node[outside]] = outside
-    unreachable = 0
-    for i in range(C):
-        for j in range(i + 1, C):
-            dij = dist[i, j]
-            if not np.isfinite(dij):
-                unreachable += 1
-                continue
-            path = [j]
-            while path[-1] != i:
-                path.append(int(pred[i, path[-1]]))
-            path = np.asarray(path)
-            comp = path < C
-            adj = np.zeros(len(path), dtype=bool)
-            adj[:-1] |= comp[1:]
-            adj[1:] |= comp[:-1]
-            hit = path[adj & ~comp & is_saddle[path]]
-            if len(hit) == 0:  # joined only through maxima or path anchors: nothing to lower here
-                unreachable += 1
-                continue
-            weights[vertex_of[hit]] += 1.0 / (dij + eps)
-    total = weights.sum()
-    if total > 0:
-        weights /= total
-    return Penalties(weights, C, unreachable, labels, float(total))
-
-
-def grid_label_at(pos: np.ndarray, labels: np.ndarray, box: Box) -> np.ndarray:
-    """Label of the nearest labelled node among the ``2^d`` corners of the grid cell of each
-    position (0 if none, or for NaN positions).
-
-    Arguments:
-        pos: ``(n, d)``; labels: int grid ``(n_1, ..., n_d)`` over ``box`` (vertex grid).
-    """
-    n, d = pos.shape
-    out = np.zeros(n, dtype=np.int64)
-    ok = np.isfinite(pos).all(axis=1)
-    if not ok.any():
-        return out
-    shape = np.asarray(labels.shape)
-    lo, hi = np.asarray(box.lo, float), np.asarray(box.hi, float)
-    u = (pos[ok] - lo) / (hi - lo) * (shape - 1)
-    base = np.clip(np.floor(u).astype(np.int64), 0, shape - 2)
-    corners = np.array(np.meshgrid(*[[0, 1]] * d, indexing="ij")).reshape(d, -1).T  # (2^d, d)
-    nodes = base[:, None, :] + corners[None]  # (n, 2^d, d)
-    lab = labels[tuple(nodes[..., i] for i in range(d))]  # (n, 2^d)
-    dist = np.linalg.norm(nodes - u[:, None, :], axis=-1)
-    dist = np.where(lab > 0, dist, np.inf)
-    best = dist.argmin(axis=1)
-    pick = lab[np.arange(len(best)), best]
-    out[ok] = np.where(np.isfinite(dist.min(axis=1)), pick, 0)
-    return out
-
-
-def batch_penalties(
-    net: SurfaceNetwork,
-    valid: np.ndarray,
-    n_shapes: int,
-    eps: float,
-    grid_labels: list[np.ndarray] | None = None,
-    box: Box | None = None,
-) -> tuple[np.ndarray, list[Penalties]]:
-    """:func:`saddle_penalties` for every shape of a batch.
-
-    Arguments:
-        net: the surface network of all shapes.
-        valid: vertices kept ``(m,)``.
-        n_shapes: ``S``.
-        eps: of ``1 / (d + eps)``.
-        grid_labels: optional per-shape labelled grids of ``{f <= 0}`` (∩ E) over ``box``
-            (:func:`ginn.extract.grid.label_components`), giving components that touch
-            the domain or region boundary.
-
-    Returns:
-        the penalty of every vertex ``(m,)`` (normalised per shape) and the per-shape results.
-    """
-    pts = net.points
-    x = pts.x.detach().cpu().double().numpy()
-    f = pts.f.detach().cpu().double().numpy()
-    kind = pts.kind.cpu().numpy()
-    shape = pts.shape.cpu().numpy()
-    p = np.zeros(pts.m)
-    results = []
-    path_shape = shape[net.path_start] if net.n_paths else np.zeros(0, np.int64)
-    for s in range(n_shapes):
-        vid = np.nonzero(shape == s)[0]
-        local = np.full(pts.m + 1, -1, dtype=np.int64)
-        local[vid] = np.arange(len(vid))
-        ps = path_shape == s
-        start = local[net.path_start[ps]]
-        end = local[net.path_end[ps]]  # -1 maps to local[-1] == -1
-        if grid_labels is not None:
-            assert box is not None
-            gl = grid_labels[s]
-            n_grid = int(gl.max())
-            end_label = grid_label_at(net.path_anchor[ps], gl, box)
-            vertex_label = grid_label_at(x[vid], gl, box)
-        else:
-            n_grid = 0
-            end_label = np.zeros(int(ps.sum()), np.int64)
-            vertex_label = np.zeros(len(vid), np.int64)
-        g = ShapeGraph(
-            x[vid], f[vid], kind[vid], valid[vid], start, end,
-            net.path_length[ps], net.path_outside_length[ps], end_label, vertex_label, n_grid,
-        )
-        r = saddle_penalties(g, eps)
-        p[vid] = r.weights
-        results.append(r)
-    return p, results
-
-
 class ConnectednessLoss(ConnectednessLossBase):
     """Stateful surface-network connectedness loss for all shapes of a batch (see
     :class:`ConnectednessLossBase`; critical points outside the domain are dropped, paths leaving
@@ -366,11 +102,12 @@ class ConnectednessLoss(ConnectednessLossBase):
         options: SurfaceNetworkLossOptions | None = None,
         membership: Region | None = None,
     ):
-        super().__init__(domain, design_region, config, device, dtype)
+        options = options or SurfaceNetworkLossOptions()
+        super().__init__(domain, design_region, config, device, dtype, resolution=max(options.label_grid, 1) * config.grid)
         # the region is asked about every point of every path at every tracing step: answered
         # from a grid of its SDF where that is exact (geometry.lookup), by the region elsewhere
         self._membership = fast_membership(self.region, domain, device=self.device) if membership is None else membership
-        self.options = options or SurfaceNetworkLossOptions()
+        self.options = options
         self.generator = torch.Generator().manual_seed(self.options.seed)
         self.step = 0
         # per shape: the call of its last full build and the calls until its next one
@@ -383,9 +120,8 @@ class ConnectednessLoss(ConnectednessLossBase):
         self._seeds: tuple[Tensor, Tensor] | None = None
         self._results: list[Penalties] = []
         self._merged = 0
-        self._region_mask: np.ndarray | None = None
-        self._grid_values = np.zeros(0)
-        self._grid_nodes = torch.zeros(0)
+        self._grid_values = np.zeros(0)  # the label grid's values of the last build, raised outside E
+        self._grid_top: float | None = None  # the value of the nodes outside E (None without E)
         self._extra: tuple[Tensor, Tensor, np.ndarray] = (torch.zeros(0, domain.dim), torch.zeros(0, dtype=torch.long), np.zeros(0))
 
     # --- state ---------------------------------------------------------------------------------
@@ -393,13 +129,13 @@ class ConnectednessLoss(ConnectednessLossBase):
     _POINT_FIELDS = ("x", "shape", "f", "grad_norm", "eigvals", "eigvecs")
     _PATH_FIELDS = ("path_start", "path_end", "path_descending", "path_length", "path_outside_length", "path_anchor", "ends")
 
-    def state_dict(self) -> dict:
-        """Everything the next call depends on, as tensors and plain numbers (checkpoints stay
-        pickle-free): the critical points, the surface network's paths, the penalties, the latents
-        they belong to, the counters and the seed generator's state. A loss restored from it
-        continues exactly as the uninterrupted one would."""
+    FORMAT = 3
+
+    def _state(self) -> dict:
+        """The critical points, the surface network's paths, the penalties, the latents they
+        belong to, the counters, each shape's schedule and the seed generator's state: a loss
+        restored from it continues exactly as the uninterrupted one would."""
         state: dict = {
-            "format": 3,
             "step": self.step,
             "last_full": torch.from_numpy(self.last_full.copy()),
             "interval": torch.from_numpy(self.interval.copy()),
@@ -416,18 +152,32 @@ class ConnectednessLoss(ConnectednessLossBase):
             state["unreachable"] = [int(r.unreachable_pairs) for r in self._results]
         return state
 
-    def load_state_dict(self, state: dict) -> None:
-        """Restore :meth:`state_dict`. A state without the network (one written before the first
-        call, or by an older version) seeds the next full build with the stored points instead."""
+    def migrate(self, state: dict) -> dict:
+        """An older state in this format: formats 1 and 2 kept one build schedule for all shapes
+        (every shape starts from it; format 1 had no interval: ``config.every``), and format 1 kept
+        the critical points only (``seeds``: they start the next full build)."""
+        lat = state["latents"]
+        S = 1 if not lat.numel() else int(lat.shape[0])
+        out = {k: v for k, v in state.items() if k not in ("points_x", "points_shape")}
+        out["format"] = self.FORMAT
+        for key, default in (("last_full", 0), ("interval", self.config.every)):
+            v = np.asarray(state.get(key, default), dtype=np.int64).reshape(-1)
+            out[key] = torch.from_numpy(np.broadcast_to(v, (S,)).copy() if v.size == 1 else v)
+        if "points_x" in state:
+            out["seeds"] = {"x": state["points_x"], "shape": state["points_shape"]}
+        return out
+
+    def _load(self, state: dict) -> None:
+        """A state without the network (written before the first call, or by format 1) seeds the
+        next full build with its points instead."""
         self.step = int(state["step"])
         lat = state["latents"]
         self._latents = lat.to(self.device, self.dtype) if lat.numel() else None
         S = 1 if self._latents is None else int(self._latents.shape[0])
-        # earlier formats kept one schedule for all shapes: every shape starts from it
         last = np.asarray(state["last_full"], dtype=np.int64).reshape(-1)
-        every = np.asarray(state.get("interval", self.config.every), dtype=np.int64).reshape(-1)
-        self.last_full = np.broadcast_to(last, (S,)).copy() if last.size in (1, S) else np.zeros(0, np.int64)
-        self.interval = np.broadcast_to(every, (S,)).copy() if every.size in (1, S) else np.zeros(0, np.int64)
+        every = np.asarray(state["interval"], dtype=np.int64).reshape(-1)
+        self.last_full = last.copy() if last.size == S else np.zeros(0, np.int64)
+        self.interval = every.copy() if every.size == S else np.zeros(0, np.int64)
         self.points = self.network = self.penalty = None
         self._seeds = None
         if "generator" in state:
@@ -442,9 +192,8 @@ class ConnectednessLoss(ConnectednessLossBase):
             self._extra = (e["x"].to(self.device, self.dtype), e["shape"].to(self.device), e["weight"].numpy().copy())
             self._results = [Penalties(np.zeros(0), c, u, np.zeros(0, np.int64))
                              for c, u in zip(state["components"], state["unreachable"])]
-        elif "points_x" in state:  # the first format: the points only
-            x = state["points_x"].to(self.device, self.dtype)
-            self._seeds = (x, state["points_shape"].to(self.device))
+        elif "seeds" in state:
+            self._seeds = (state["seeds"]["x"].to(self.device, self.dtype), state["seeds"]["shape"].to(self.device))
 
     # --- work ----------------------------------------------------------------------------------
 
@@ -507,63 +256,25 @@ class ConnectednessLoss(ConnectednessLossBase):
         those of their build (``net`` over their vertices, shapes numbered in the order of ``sub``);
         the vertices stay sorted by shape and the paths' vertex indices follow them."""
         assert self.points is not None and self.network is not None and self.penalty is not None
-        old, on = self.points, self.network
-        dev = old.shape.device
-        gsub = torch.from_numpy(sub).to(dev)
-        keep = ~np.isin(old.shape.cpu().numpy(), sub)
-        kidx = np.nonzero(keep)[0]
-        kt = torch.from_numpy(kidx).to(dev)
-        new = net.points
-        fields_ = {k: torch.cat([getattr(old, k)[kt], getattr(new, k)]) for k in self._POINT_FIELDS if k != "shape"}
-        shape = torch.cat([old.shape[kt], gsub[new.shape]])
-        order = torch.argsort(shape, stable=True)
-        m = int(shape.shape[0])
-        pos = np.empty(m, dtype=np.int64)
-        pos[order.cpu().numpy()] = np.arange(m)
-        at = np.full(old.m, -1, dtype=np.int64)
-        at[kidx] = np.arange(len(kidx))  # old vertex -> its row in the concatenation
-        pk = keep[on.path_start] if on.n_paths else np.zeros(0, dtype=bool)
-
-        def ends(e: np.ndarray, rows: np.ndarray) -> np.ndarray:
-            return np.where(e >= 0, pos[rows[np.maximum(e, 0)]], -1)
-
-        new_rows = len(kidx) + np.arange(new.m)
-        pts = CriticalPoints(shape=shape[order], **{k: v[order] for k, v in fields_.items()})
-        cat = lambda a, b: np.concatenate([a, b])  # noqa: E731
-        self.network = SurfaceNetwork(
-            pts,
-            cat(pos[at[on.path_start[pk]]], pos[new_rows[net.path_start]]),
-            cat(ends(on.path_end[pk], at), ends(net.path_end, new_rows)),
-            cat(on.path_descending[pk], net.path_descending),
-            cat(on.path_length[pk], net.path_length),
-            cat(on.path_outside_length[pk], net.path_outside_length),
-            cat(on.path_anchor[pk], net.path_anchor),
-            cat(on.ends[pk], net.ends),
-        )
-        self.points = pts
-        self.penalty = cat(self.penalty[kidx], penalty)[order.cpu().numpy()]
+        self.network, kept, order = self.network.with_shapes(sub, net)
+        self.points = self.network.points
+        self.penalty = np.concatenate([self.penalty[kept], penalty])[order]
         for i, s_ in enumerate(sub):
             self._results[int(s_)] = results[i]
         ex, es, ep = self._extra
         ko = ~np.isin(es.cpu().numpy(), sub)
-        kot = torch.from_numpy(np.nonzero(ko)[0]).to(dev)
+        kot = torch.from_numpy(np.nonzero(ko)[0]).to(es.device)
         nx, ns, nw = extra
-        self._extra = (torch.cat([ex[kot], nx.to(ex.dtype)]), torch.cat([es[kot], gsub[ns]]), cat(ep[ko], nw))
+        gsub = torch.from_numpy(sub).to(es.device)
+        self._extra = (torch.cat([ex[kot], nx.to(ex.dtype)]), torch.cat([es[kot], gsub[ns]]), np.concatenate([ep[ko], nw]))
 
     def _grid_labels(self, field, Z: Tensor | None) -> list[np.ndarray] | None:
+        """The components of every shape of ``Z`` on the label grid (inside E), or None without
+        one; keeps the grid's values for the fallback."""
         if self.options.label_grid <= 0:
             return None
-        res = self.options.label_grid * self.config.grid
-        vals, pts, shape = field_on_grid(field, Z, self.domain, res, self.device, self.dtype)
-        if self._region_mask is None or self._region_mask.shape != shape:
-            self._region_mask = (
-                self.region.contains(pts).reshape(shape).cpu().numpy().astype(bool)
-                if self.region is not None
-                else np.ones(shape, dtype=bool)
-            )
-        self._grid_values = vals
-        self._grid_nodes = pts.reshape(*shape, -1)
-        return [label_components((v <= 0) & self._region_mask)[0] for v in vals]
+        self._grid_values, self._grid_top = self.grid_values(field, Z)  # nodes outside E raised to _grid_top
+        return [label_components(v <= 0)[0] for v in self._grid_values]
 
     def _fallback(self, field, Z: Tensor | None, points: CriticalPoints, penalty: np.ndarray, results: list[Penalties],
                   have_grid: bool) -> tuple[Tensor, Tensor, np.ndarray]:
@@ -586,9 +297,7 @@ class ConnectednessLoss(ConnectednessLossBase):
         returns the fallback nodes: positions ``(q, d)``, shapes ``(q,)`` and weights ``(q,)``."""
         xs, ss, ws = [], [], []
         if have_grid and self.options.fallback and any(r.unreachable_pairs for r in results):
-            vals = self._grid_values.copy()
-            sentinel = np.abs(vals).max() + 1.0
-            vals[:, ~self._region_mask] = sentinel
+            vals = self._grid_values
             h = cell_size(self.domain, self.options.label_grid * self.config.grid)
             shape_np = points.shape.cpu().numpy()
             xall = points.x.detach().cpu().double().numpy()
@@ -596,9 +305,11 @@ class ConnectednessLoss(ConnectednessLossBase):
             deaths = {s: dp for s, dp in deaths.items() if len(dp.value)}
             if not deaths:
                 return self._no_extra()
-            pos_all = self._grid_nodes[tuple(torch.from_numpy(np.concatenate([dp.index for dp in deaths.values()])).T)]
+            pos_all = self.nodes[tuple(torch.from_numpy(np.concatenate([dp.index for dp in deaths.values()])).T)]
             shape_all = np.concatenate([np.full(len(dp.value), s) for s, dp in deaths.items()])
-            real_all = self._real_splits(field, Z, shape_all, pos_all, np.concatenate([dp.value for dp in deaths.values()]) < sentinel, h)
+            died = np.concatenate([dp.value for dp in deaths.values()])
+            real_all = self._real_splits(field, Z, shape_all, pos_all, died < self._grid_top if self._grid_top is not None
+                                         else np.ones(len(died), dtype=bool), h)
             for s, dp in deaths.items():
                 r = results[s]
                 mine = shape_all == s

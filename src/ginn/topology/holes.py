@@ -41,7 +41,8 @@ Each move is a hinge on the field at a fixed cell centre (``relu(m - f(x))`` to 
 with the margin; the batch loss is the sum of a shape's hinges, averaged over the shapes.
 
 The persistence diagram is recomputed every ``every`` calls; in between the same cells are
-penalised with the field's current values.
+penalised with the field's current values (the grid, the nodes outside E and the schedule are
+:class:`ginn.topology.base.GridTopologyLoss`'s).
 """
 
 from __future__ import annotations
@@ -54,9 +55,8 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from ..extract.grid import node_grid
 from ..geometry.base import Box, Region
-from .components import field_on_grid
+from .base import GridTopologyLoss
 from .critical import latents_of
 
 __all__ = ["FeatureMoves", "feature_moves", "seed_cells", "ring_cells", "pierce_cells", "HoleCountLoss"]
@@ -265,7 +265,7 @@ def feature_moves(values: np.ndarray, targets: dict[int, int], margin: float,
     return FeatureMoves(index, np.asarray(up, dtype=bool), counts, used)
 
 
-class HoleCountLoss:
+class HoleCountLoss(GridTopologyLoss):
     """The loss of the module docstring for all shapes of a batch.
 
     Arguments:
@@ -283,29 +283,19 @@ class HoleCountLoss:
 
     def __init__(self, domain: Box, design_region: Region | None, targets: dict[int, int], resolution: int = 64,
                  every: int = 1, device=None, dtype=torch.float32):
-        self.domain, self.targets = domain, dict(targets)
-        self.resolution, self.every = int(resolution), max(1, int(every))
-        self.device, self.dtype = torch.device(device or "cpu"), dtype
-        grid = node_grid(domain, self.resolution)
-        pts = grid.tensor_points(self.device, dtype)
-        self._grid = pts.reshape(*grid.shape, -1)
-        self._spacing = np.array([(h - lo) / (n - 1) for lo, h, n in zip(domain.lo, domain.hi, grid.shape)])
-        self.margin = float(self._spacing.max())
-        self._outside = None
-        if design_region is not None:
-            self._outside = ~design_region.contains(pts).reshape(grid.shape).cpu().numpy().astype(bool)
-        self._calls = 0
+        super().__init__(domain, design_region, resolution, device, dtype, every)
+        self.targets = dict(targets)
+        self.margin = float(self.spacing.max())
         self._cells: tuple[Tensor, Tensor, Tensor] | None = None  # points (q, d), shape index (q,), sign (q,)
         self._seeds: list[dict[int, np.ndarray]] = []  # per shape: the seed centres in use, {k: (q, d)}
-        self.last_info: dict = {}
 
-    def state_dict(self) -> dict:
+    def _state(self) -> dict:
         cells = None if self._cells is None else [t.cpu() for t in self._cells]
         seeds = [{int(k): v.tolist() for k, v in sd.items()} for sd in self._seeds]
-        return {"calls": self._calls, "cells": cells, "seeds": seeds}
+        return {"calls": self.calls, "cells": cells, "seeds": seeds}
 
-    def load_state_dict(self, state: dict) -> None:
-        self._calls = int(state.get("calls", 0))
+    def _load(self, state: dict) -> None:
+        self.calls = int(state.get("calls", 0))
         cells = state.get("cells")
         self._cells = None if cells is None else tuple(t.to(self.device) for t in cells)
         d = self.domain.dim
@@ -315,35 +305,30 @@ class HoleCountLoss:
     def _recompute(self, field, Z: Tensor | None) -> None:
         S = 1 if Z is None else int(Z.shape[0])
         Zd = None if Z is None else Z.detach().to(self.device, self.dtype)
-        vals, _, _ = field_on_grid(field, Zd, self.domain, self.resolution, self.device, self.dtype)
-        top = None
-        if self._outside is not None:
-            vals = vals.copy()
-            top = float(np.abs(vals).max()) + 1.0
-            vals[:, self._outside] = top
+        vals, top = self.grid_values(field, Zd)
         xs, ss, signs, counts = [], [], [], []
         previous = self._seeds if len(self._seeds) == S else [{} for _ in range(S)]
         self._seeds = []
         for s in range(S):
-            mv = feature_moves(vals[s], self.targets, self.margin, self._outside, top, self._spacing, previous[s])
+            mv = feature_moves(vals[s], self.targets, self.margin, self.outside, top, self.spacing, previous[s])
             counts.append(mv.counts)
             self._seeds.append(mv.seeds)
             if len(mv.index):
-                xs.append(self._grid[tuple(torch.from_numpy(mv.index).T)])
+                xs.append(self.nodes[tuple(torch.from_numpy(mv.index).T)])
                 ss.append(torch.full((len(mv.index),), s, dtype=torch.long))
                 signs.append(torch.from_numpy(np.where(mv.raise_, 1.0, -1.0)))
         if xs:
             self._cells = (torch.cat(xs), torch.cat(ss).to(self.device), torch.cat(signs).to(self.device))
         else:
-            self._cells = (self._grid.reshape(-1, self.domain.dim)[:0], torch.zeros(0, dtype=torch.long, device=self.device),
+            self._cells = (self.nodes.reshape(-1, self.domain.dim)[:0], torch.zeros(0, dtype=torch.long, device=self.device),
                            torch.zeros(0, device=self.device, dtype=torch.float64))
         self.last_info = {"counts": counts}
 
     def __call__(self, field, Z: Tensor | None) -> Tensor:
         t0 = time.perf_counter()
-        if self._cells is None or self._calls % self.every == 0:
+        if self._cells is None or self.due():
             self._recompute(field, Z)
-        self._calls += 1
+        self.calls += 1
         x, sh, sign = self._cells
         S = 1 if Z is None else int(Z.shape[0])
         f = field(x.detach(), latents_of(Z, sh))

@@ -18,7 +18,7 @@ separates it from the rest. The loss pushes ``f`` down at those *death points*:
 Newton steps to the continuous saddle) is held fixed. The batch loss is the mean over shapes.
 
 With a design region (``restrict_to_design_region``), nodes outside it are given a value above
-the grid maximum so they never join the shape.
+the grid maximum so they never join the shape (:meth:`ginn.topology.base.GridTopologyLoss.grid_values`).
 """
 
 from __future__ import annotations
@@ -30,10 +30,8 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from ..extract.grid import node_grid
 from ..geometry.base import Box, Region
 from .base import ConnectednessLossBase
-from .components import field_on_grid
 from .critical import cell_size, latents_of, newton_refine
 
 
@@ -111,26 +109,17 @@ class PersistentHomologyLoss(ConnectednessLossBase):
         dtype=torch.float32,
         options: PersistenceOptions | None = None,
     ):
-        super().__init__(domain, design_region, config, device, dtype)
-        self.options = options or PersistenceOptions()
-        self.resolution = int(self.options.resolution or config.grid)
-        grid = node_grid(domain, self.resolution)
-        pts, shape = grid.tensor_points(self.device, dtype), grid.shape
-        self._grid = pts.reshape(*shape, -1)
-        self._shape = shape
-        self._outside = None
-        if self.region is not None:
-            self._outside = ~self.region.contains(pts).reshape(shape).cpu().numpy().astype(bool)
+        options = options or PersistenceOptions()
+        super().__init__(domain, design_region, config, device, dtype, resolution=options.resolution)
+        self.options = options
         self.last_points: tuple[Tensor, Tensor, Tensor] | None = None
 
     def __call__(self, field, Z: Tensor | None) -> Tensor:
         t0 = time.perf_counter()
         S = 1 if Z is None else int(Z.shape[0])
         Zd = None if Z is None else Z.detach().to(self.device, self.dtype)
-        vals, _, _ = field_on_grid(field, Zd, self.domain, self.resolution, self.device, self.dtype)
-        if self._outside is not None:
-            vals = vals.copy()
-            vals[:, self._outside] = np.abs(vals).max() + 1.0
+        vals, _ = self.grid_values(field, Zd)
+        self.calls += 1
         xs, ss, ps, comps = [], [], [], []
         for s in range(S):
             dp = death_points(vals[s])
@@ -138,7 +127,7 @@ class PersistentHomologyLoss(ConnectednessLossBase):
             if len(dp.value) == 0:
                 continue
             w = 1.0 / (2.0 * dp.value + self.config.eps)
-            xs.append(self._grid[tuple(torch.from_numpy(dp.index).T)])
+            xs.append(self.nodes[tuple(torch.from_numpy(dp.index).T)])
             ss.append(torch.full((len(w),), s, dtype=torch.long))
             ps.append(w / w.sum())
         if xs:
@@ -153,7 +142,7 @@ class PersistentHomologyLoss(ConnectednessLossBase):
                 )
                 x = torch.where(r.converged[:, None], r.x, x)
         else:
-            x = self._grid.reshape(-1, self.domain.dim)[:0]
+            x = self.nodes.reshape(-1, self.domain.dim)[:0]
             sh = torch.zeros(0, dtype=torch.long, device=self.device)
             p = torch.zeros(0, dtype=torch.float64)
         f = field(x.detach(), latents_of(Z, sh))

@@ -116,6 +116,50 @@ class SurfaceNetwork:
         dense[~np.isfinite(dense)] = 0.0
         return sparse.csr_matrix(dense)
 
+    def with_shapes(self, sub: np.ndarray, net: SurfaceNetwork) -> tuple[SurfaceNetwork, np.ndarray, np.ndarray]:
+        """This network with the shapes ``sub`` (``(k,)`` indices) replaced by ``net`` (their new
+        network, shapes numbered ``0..k-1`` in the order of ``sub``): the vertices stay sorted by
+        shape and the paths' vertex indices follow them.
+
+        Returns:
+            the network, the old vertices kept ``(q,)`` and the order ``(m,)`` that sorts the kept
+            vertices followed by ``net``'s into the new ones (for per-vertex arrays).
+        """
+        old, new = self.points, net.points
+        dev = old.shape.device
+        gsub = torch.from_numpy(sub).to(dev)
+        keep = ~np.isin(old.shape.cpu().numpy(), sub)
+        kidx = np.nonzero(keep)[0]
+        kt = torch.from_numpy(kidx).to(dev)
+        fields = ("x", "f", "grad_norm", "eigvals", "eigvecs")
+        cols = {k: torch.cat([getattr(old, k)[kt], getattr(new, k)]) for k in fields}
+        shape = torch.cat([old.shape[kt], gsub[new.shape]])
+        order = torch.argsort(shape, stable=True)
+        m = int(shape.shape[0])
+        pos = np.empty(m, dtype=np.int64)
+        pos[order.cpu().numpy()] = np.arange(m)
+        at = np.full(old.m, -1, dtype=np.int64)
+        at[kidx] = np.arange(len(kidx))  # old vertex -> its row in the concatenation
+        pk = keep[self.path_start] if self.n_paths else np.zeros(0, dtype=bool)
+
+        def ends(e: np.ndarray, rows: np.ndarray) -> np.ndarray:
+            return np.where(e >= 0, pos[rows[np.maximum(e, 0)]], -1)
+
+        new_rows = len(kidx) + np.arange(new.m)
+        pts = CriticalPoints(shape=shape[order], **{k: v[order] for k, v in cols.items()})
+        cat = lambda a, b: np.concatenate([a, b])  # noqa: E731
+        merged = SurfaceNetwork(
+            pts,
+            cat(pos[at[self.path_start[pk]]], pos[new_rows[net.path_start]]),
+            cat(ends(self.path_end[pk], at), ends(net.path_end, new_rows)),
+            cat(self.path_descending[pk], net.path_descending),
+            cat(self.path_length[pk], net.path_length),
+            cat(self.path_outside_length[pk], net.path_outside_length),
+            cat(self.path_anchor[pk], net.path_anchor),
+            cat(self.ends[pk], net.ends),
+        )
+        return merged, kidx, order.cpu().numpy()
+
     @staticmethod
     def empty(points: CriticalPoints) -> SurfaceNetwork:
         d = points.dim

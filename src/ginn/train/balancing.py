@@ -16,7 +16,7 @@ Every ``update_every`` iterations the multipliers take a dual ascent step
 problem's hand-tuned weights are a starting point, not a requirement.
 
 Adaptive multipliers (``method: adaptive``): each constraint term ``l_i`` has a target ``eps_i``
-(the task's :meth:`~ginn.train.task.Task.constraint_targets`, derived from the problem's
+(the task's :attr:`Balance.targets`, derived from the problem's
 tolerances) and the objective is ``sum_obj w_j l_j + sum_con lambda_i l_i``, the Lagrangian of
 ``min objectives s.t. l_i <= eps_i`` up to a constant. After every step the running average
 ``m_i`` of ``l_i`` (an exponential average with factor ``average``, bias-corrected) moves the
@@ -35,7 +35,7 @@ each feasibility check during training (``training.feasibility_checks``) raises 
 the terms behind a constraint it finds violated and not on track to be met by the end of the run.
 With ``q_c`` the constraint's value over its bound for the worst shape
 (:func:`ginn.eval.feasibility.ratios`: CD1 / bound, volume outside E / bound, pieces inside E; the
-smaller of the iterate's and the interval mean's, :func:`ginn.train.trainer.candidate_ratios`),
+smaller of the iterate's and the interval mean's, :func:`ginn.tasks.shape.checks.candidate_ratios`),
 ``q_c'`` the same at the check before and ``R`` the number of checks still to come::
 
     on track:  q_c (q_c / q_c')^R <= 1     (the last interval's rate, kept up, meets the bound)
@@ -62,6 +62,7 @@ other terms get the room.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, field
 
 from torch import Tensor
 
@@ -239,9 +240,9 @@ class CheckedMultipliers(WeightedSum):
     Arguments:
         terms: every loss term (the weights start the multipliers and weigh the objectives).
         groups: ``{constraint: (term, ...)}``, the loss terms that enforce each constraint of the
-            verdict (:meth:`~ginn.train.task.Task.constraint_terms`); terms in no group keep their
+            verdict (:attr:`Balance.groups`); terms in no group keep their
             weights.
-        bounded: the constraints that bound an objective (:meth:`~ginn.train.task.Task.bounded_objectives`):
+        bounded: the constraints that bound an objective (:attr:`Balance.bounded`):
             their multipliers also fall while met.
 
     ``GROWTH`` (the largest factor per check) is a class constant: it acts on ratios to the
@@ -299,17 +300,33 @@ class CheckedMultipliers(WeightedSum):
         self.previous = {k: float(v) for k, v in state["previous"].items()}
 
 
-def make_balancer(terms: dict[str, LossTerm], cfg: BalancingConfig, targets: dict[str, float] | None = None,
-                  groups: dict[str, tuple[str, ...]] | None = None, bounded: tuple[str, ...] = ()) -> WeightedSum:
-    """The balancer of ``cfg.method``; ``targets``: the constraint targets for ``adaptive``;
-    ``groups``: the terms of each checked constraint and ``bounded`` those of them that bound an
-    objective, for ``feasibility``."""
+@dataclass(frozen=True)
+class Balance:
+    """What a task tells the balancer about its terms (:meth:`ginn.train.task.Task.balance`).
+
+    Attributes:
+        targets: ``{term: eps}``: the terms that are constraints ``term <= eps`` under
+            ``adaptive`` (the rest are objectives).
+        groups: ``{constraint: (term, ...)}``: the constraints of the feasibility verdict and the
+            terms that enforce each, for ``feasibility``.
+        bounded: the constraints of ``groups`` that bound an objective from below (a least
+            diversity): their multipliers also fall while the bound is met.
+    """
+
+    targets: dict[str, float] = field(default_factory=dict)
+    groups: dict[str, tuple[str, ...]] = field(default_factory=dict)
+    bounded: tuple[str, ...] = ()
+
+
+def make_balancer(terms: dict[str, LossTerm], cfg: BalancingConfig, balance: Balance | None = None) -> WeightedSum:
+    """The balancer of ``cfg.method`` for ``terms``, with the task's targets and groups."""
+    b = balance or Balance()
     if cfg.method == "weighted":
         return WeightedSum(terms, cfg.objectives)
     if cfg.method == "adaptive":
-        return AdaptiveMultipliers(terms, targets or {})
+        return AdaptiveMultipliers(terms, b.targets)
     if cfg.method == "feasibility":
-        return CheckedMultipliers(terms, groups or {}, cfg.objectives, bounded)
+        return CheckedMultipliers(terms, b.groups, cfg.objectives, b.bounded)
     return AugmentedLagrangian(terms, cfg)
 
 

@@ -268,24 +268,79 @@ def read_status(run_dir: Path) -> Status:
 # --- metrics.jsonl --------------------------------------------------------------------------------
 
 
-def read_metrics(path: Path) -> list[dict]:
-    """The records of a ``metrics.jsonl``; a line that is not a JSON object is skipped with a warning."""
+class RunRecord:
+    """What a training process keeps current in its run directory: ``metrics.jsonl`` (one line
+    per record) and ``status.json``. Nothing is written without a directory, nor on ranks other
+    than 0 (``writes`` False). A failed write is one line that names the file and says what the
+    last checkpoint left intact.
+
+    Arguments:
+        run_dir: the run directory, or None.
+        writes: whether this process writes (rank 0).
+        checkpoint: the checkpoint file, for the message after a failed write.
+    """
+
+    def __init__(self, run_dir: Path | None, writes: bool, checkpoint: Path | None):
+        self.run_dir, self.writes, self.checkpoint = run_dir, writes and run_dir is not None, checkpoint
+
+    def intact(self) -> str:
+        """What is left after a failed write: the last checkpoint, which a failed write never touches."""
+        if self.checkpoint is not None and self.checkpoint.is_file():
+            return f"the last checkpoint ({self.checkpoint}) is intact; `ginn resume {self.run_dir}` continues from it"
+        return "no checkpoint had been written yet"
+
+    def append(self, record: dict) -> bool:
+        """Add ``record`` to ``metrics.jsonl``; returns whether this process writes."""
+        if not self.writes:
+            return False
+        path = self.run_dir / "metrics.jsonl"
+        try:
+            with open(path, "a") as fh:
+                fh.write(json.dumps(record) + "\n")
+        except OSError as e:
+            raise GinnError(f"{io_error(e, path)}; {self.intact()}") from None
+        return True
+
+    def status(self, status: str, step: int, seconds: float, reason: str = "", heartbeat_every: float = 60.0) -> None:
+        """Write ``status.json`` (:func:`write_status`)."""
+        if self.writes:
+            write_status(self.run_dir, status, step, seconds, reason, heartbeat_every=heartbeat_every)
+
+    def try_status(self, *args, **kwargs) -> None:
+        """:meth:`status`, if the disk still lets us (after a failure: the original error is what matters)."""
+        try:
+            self.status(*args, **kwargs)
+        except GinnError:
+            pass
+
+
+def metrics_lines(text: str) -> list[tuple[int, str, dict | None]]:
+    """``(line number, line, record)`` of every non-empty line of a ``metrics.jsonl``'s text; the
+    record is None for a line that is not a JSON object (a partial last line, say)."""
     out = []
-    try:
-        text = Path(path).read_text()
-    except OSError as e:
-        raise io_error(e, path, "read") from None
-    for i, line in enumerate(text.splitlines(), 1):
+    for i, line in enumerate(text.split("\n"), 1):
         if not line.strip():
             continue
         try:
             rec = json.loads(line)
         except ValueError:
             rec = None
-        if not isinstance(rec, dict):
+        out.append((i, line, rec if isinstance(rec, dict) else None))
+    return out
+
+
+def read_metrics(path: Path) -> list[dict]:
+    """The records of a ``metrics.jsonl``; a line that is not a JSON object is skipped with a warning."""
+    try:
+        text = Path(path).read_text()
+    except OSError as e:
+        raise io_error(e, path, "read") from None
+    out = []
+    for i, _, rec in metrics_lines(text):
+        if rec is None:
             warnings.warn(f"{path}:{i}: skipped a line that is not a JSON record", stacklevel=2)
-            continue
-        out.append(rec)
+        else:
+            out.append(rec)
     return out
 
 
@@ -301,16 +356,10 @@ def truncate_metrics(path: Path, step: int) -> int:
     except OSError as e:
         raise io_error(e, path, "read") from None
     keep, dropped = [], 0
-    lines = text.split("\n")
-    for i, line in enumerate(lines):
-        if not line.strip():
-            continue
-        try:
-            rec = json.loads(line)
-        except ValueError:
-            rec = None
-        if not isinstance(rec, dict):
-            where = "the partial last line" if i >= len(lines) - 2 else f"line {i + 1}"
+    last = text.count("\n") + 1
+    for i, line, rec in metrics_lines(text):
+        if rec is None:
+            where = "the partial last line" if i >= last - 1 else f"line {i}"
             warnings.warn(f"{path}: dropped {where}, which is not a JSON record", stacklevel=2)
             dropped += 1
             continue

@@ -30,9 +30,10 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from ..eval.feasibility import FEASIBILITY_METRICS, judged_volume_outside, verdict_text, violations
+from ..eval.feasibility import FEASIBILITY_METRICS, judged_volume_outside, shape_violations, verdict_text
 from ..eval.metrics import extract_shape, prepare_context, shape_metrics
 from ..eval.reference.minimal_surface import plateau_reference
+from ..eval.results import ShapeMetrics
 from ..extract.boundary import extract_boundary
 from ..extract.grid import make_grid
 from ..fields import Field
@@ -98,8 +99,8 @@ def explorer_latents(Z: Tensor | None, steps: int) -> ExplorerLatents:
     return ExplorerLatents(codes, labels, [False] * len(codes), (n, n))
 
 
-def _verdict(m: dict, problem: Problem) -> str:
-    lines = verdict_text(violations(m, problem)).replace(", ", "; ").split("; ")
+def _verdict(m: ShapeMetrics, problem: Problem) -> str:
+    lines = verdict_text(shape_violations(m, problem)).replace(", ", "; ").split("; ")
     cd1, vol, b0 = m.get("interface_cd1"), judged_volume_outside(m), m.get("b0_in_design_region")
     if cd1 is not None and problem.interfaces:
         lines.append(f"CD1 {cd1:.2e} (bound {problem.tolerances.interface * problem.unit_scale:.2e})")

@@ -18,9 +18,7 @@ which writes (PNG):
 
 from __future__ import annotations
 
-import json
 import math
-import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -38,6 +36,7 @@ from ..extract.sampling import sample_field
 from ..fields import Field
 from ..geometry.base import Box, Region
 from ..problems.problem import Problem
+from ..train.rundir import read_metrics
 
 __all__ = [
     "new_figure",
@@ -416,18 +415,7 @@ def plot_loss_curves(metrics_jsonl: str | Path, path: str | Path, keys: Sequence
     step (``step``/``epoch``/``iteration``, else the line number); log scale where positive and
     spanning decades. One panel per series: ``total`` first, then the loss terms, ``lr`` and
     ``grad_norm``, then ``_diagnostics``; wall-clock keys (``time``) are skipped."""
-    rows = []
-    for i, line in enumerate(Path(metrics_jsonl).read_text().splitlines(), 1):
-        line = line.strip()
-        if line:
-            try:
-                rec = json.loads(line)
-            except json.JSONDecodeError:
-                rec = None
-            if not isinstance(rec, dict):
-                warnings.warn(f"{metrics_jsonl}:{i}: skipped a line that is not a JSON record", stacklevel=2)
-                continue
-            rows.append(_flatten(rec))
+    rows = [_flatten(rec) for rec in read_metrics(Path(metrics_jsonl))]
     series: dict[str, tuple[list, list]] = {}
     for i, r in enumerate(rows):
         step = next((r[k] for k in _STEP_KEYS if k in r), float(i))

@@ -1,7 +1,6 @@
-"""Independent classical references for problems with known answers: discrete minimal surfaces
-(Plateau) and a spectral Gray-Scott solver."""
+"""Independent classical references for shape problems with known answers: discrete minimal
+surfaces (Plateau). The Gray-Scott kind's spectral solver is :mod:`ginn.tasks.gray_scott.solver`."""
 
-from .gray_scott import GrayScottSolver, phase_randomised, relative_residual, residuals
 from .minimal_surface import (
     PLATEAU_AREA_ESTIMATE,
     MinimalSurface,
@@ -19,10 +18,6 @@ from .minimal_surface import (
 )
 
 __all__ = [
-    "GrayScottSolver",
-    "phase_randomised",
-    "relative_residual",
-    "residuals",
     "MinimalSurface",
     "PLATEAU_AREA_ESTIMATE",
     "annulus_minimal_surface",

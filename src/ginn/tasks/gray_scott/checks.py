@@ -4,13 +4,13 @@ For every trained latent, ``u`` and ``v`` are sampled on a ``resolution x resolu
 (float64 NumPy from here on) and four checks are made:
 
 1. **stationary residual**: equation 3 with a *spectral* Laplacian
-   (:func:`ginn.eval.reference.gray_scott.relative_residual`): ``rel`` = RMS residual / RMS reaction term of the
+   (:func:`ginn.tasks.gray_scott.solver.relative_residual`): ``rel`` = RMS residual / RMS reaction term of the
    same equation (the larger of the u and v equations); passes when ``rel <= residual_max``.
 2. **stationarity under time integration**: the PDE is integrated from the sampled state for
    ``t_final`` (1000) time units with the ETDRK2 spectral solver
-   (:class:`ginn.eval.reference.gray_scott.GrayScottSolver`); ``change = ||v(T) - v(0)|| / ||v(0)||`` must be
+   (:class:`ginn.tasks.gray_scott.solver.GrayScottSolver`); ``change = ||v(T) - v(0)|| / ||v(0)||`` must be
    ``<= change_max`` (0.10). A control with the same mean and variance (same power spectrum) but
-   random Fourier phases (:func:`ginn.eval.reference.gray_scott.phase_randomised`) is integrated the same way and
+   random Fourier phases (:func:`ginn.tasks.gray_scott.solver.phase_randomised`) is integrated the same way and
    its ``control_change`` reported.
 3. **non-trivial**: ``std(v) >= std_min`` (0.05); the uniform state ``u = 1, v = 0`` solves the PDE.
 4. **diverse**: the translation-invariant distance
@@ -27,9 +27,9 @@ import numpy as np
 import torch
 from torch import Tensor, nn
 
-from ..config import GrayScottParams, GSParams, parse_task_params
-from ..extract.grid import periodic_points
-from .reference.gray_scott import GrayScottSolver, phase_randomised, relative_residual
+from ...config import GrayScottParams, GSParams, parse_task_params
+from ...extract.grid import periodic_points
+from .solver import GrayScottSolver, phase_randomised, relative_residual
 
 
 @dataclass(frozen=True)

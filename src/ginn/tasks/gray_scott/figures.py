@@ -9,7 +9,7 @@ import numpy as np
 import torch
 from torch import Tensor, nn
 
-from ..eval.gray_scott import sample_fields
+from .checks import sample_fields
 
 
 def _save_image(A: np.ndarray, path: Path, vmin: float, vmax: float) -> None:

@@ -27,24 +27,18 @@ Weights (paper): residual 1, gradient 1e-4, diversity 1e-7; they live in ``cfg.p
 
 from __future__ import annotations
 
-import json
-import math
-from pathlib import Path
-
 import torch
 from torch import Tensor, nn
 
-from ...config import GrayScottParams, GSParams, LossTerm, RunConfig, ShapeParams, parse_task_params
-from ...errors import ConfigError
-from ...eval.gray_scott import verify_run
-from ...extract.grid import check_grid_memory, periodic_points
+from ...config import GrayScottParams, LossTerm, RunConfig, ShapeParams, parse_task_params
+from ...extract.grid import periodic_points
 from ...fields import evaluate, laplacian
 from ...losses.diversity import aggregate
-from ...models import ConcatConditioning, FourierMLP, PeriodicEncoding, Siren
 from ...train.task import Task
-from ...viz.explorer_pinn import write_pattern_explorer
-from ...viz.gray_scott import write_patterns
 from .finite_diff import fourier_shift, grid_derivatives, spectral_laplacian
+from .model import GrayScottField, build_field, fixed_latents, sample_grid
+from .patterns import pattern_distance, pseudo_time_step
+from .results import GrayScottResults
 
 
 def parse_params(params: dict | GrayScottParams | ShapeParams | None) -> GrayScottParams:
@@ -54,117 +48,6 @@ def parse_params(params: dict | GrayScottParams | ShapeParams | None) -> GraySco
     if isinstance(params, ShapeParams):  # a config without a params group: the defaults
         return GrayScottParams()
     return parse_task_params("gray-scott", params)
-
-
-class GrayScottField(nn.Module):
-    """``(u, v)`` of every latent: two networks ``model.u``, ``model.v``, each ``(x, z) -> (n,)``.
-
-    ``forward(x (n, 2), z (n, k)) -> (n, 2)`` with columns ``u = u_offset + scale * model.u(x, z)``
-    and ``v = v_offset + scale * model.v(x, z)`` (defaults: the raw outputs).
-    """
-
-    def __init__(self, u: nn.Module, v: nn.Module, u_offset: float = 0.0, v_offset: float = 0.0, scale: float = 1.0):
-        super().__init__()
-        self.u, self.v = u, v
-        self.u_offset, self.v_offset, self.scale = float(u_offset), float(v_offset), float(scale)
-
-    def field_u(self, x: Tensor, z: Tensor | None) -> Tensor:
-        return self.scale * self.u(x, z) + self.u_offset
-
-    def field_v(self, x: Tensor, z: Tensor | None) -> Tensor:
-        return self.scale * self.v(x, z) + self.v_offset
-
-    def forward(self, x: Tensor, z: Tensor | None = None) -> Tensor:
-        return torch.stack([self.field_u(x, z), self.field_v(x, z)], dim=-1)
-
-
-def build_field(cfg: RunConfig, params: GrayScottParams) -> GrayScottField:
-    """Two identical networks per ``cfg.model`` (``siren`` or ``fourier``), periodic encoding always on."""
-    k = cfg.latents.dim if cfg.latents.n_shapes > 1 or cfg.latents.random else 0
-    m = cfg.model
-
-    def one() -> nn.Module:
-        if m.kind == "siren":
-            return Siren(2, m.hidden, latent_dim=k, w0_first=m.w0_first, w0_hidden=m.w0_hidden,
-                         encoding=PeriodicEncoding(), conditioning=ConcatConditioning(m.latent_scale))
-        if m.kind == "fourier":
-            return FourierMLP(2, m.hidden, latent_dim=k, sigma=m.sigma, n_features=m.n_features,
-                              activation=m.activation, beta=m.beta, pre_encoding=PeriodicEncoding(),
-                              conditioning=ConcatConditioning(m.latent_scale))
-        raise ConfigError(f"config field 'model.kind': {m.kind!r} is not supported by gray-scott (siren, fourier)")
-
-    return GrayScottField(one(), one(), params.u_offset, params.v_offset, params.output_scale)
-
-
-def fixed_latents(n: int, dim: int, low: float, high: float, seed: int) -> Tensor:
-    """The trained latent codes ``(n, dim)``: evenly spaced for ``dim == 1``, else uniform with ``seed``."""
-    if dim == 1:
-        return torch.linspace(low, high, n, dtype=torch.float64)[:, None]
-    g = torch.Generator().manual_seed(seed + 7919)
-    return low + (high - low) * torch.rand(n, dim, generator=g, dtype=torch.float64)
-
-
-def sample_grid(model: GrayScottField, Z: Tensor, n: int, offset: Tensor | None = None) -> Tensor:
-    """All latents on one shared grid in one forward pass: ``(S, 2, n, n)`` (channel 0 u, 1 v)."""
-    S = Z.shape[0]
-    X = periodic_points(n, offset, dtype=Z.dtype, device=Z.device).reshape(-1, 2)
-    x = X[None].expand(S, -1, -1).reshape(-1, 2)
-    z = Z[:, None, :].expand(S, n * n, Z.shape[-1]).reshape(-1, Z.shape[-1])
-    out = model(x, z)
-    return out.reshape(S, n, n, 2).permute(0, 3, 1, 2)
-
-
-def shift_invariant_sq_distance(A: Tensor, B: Tensor) -> Tensor:
-    """``min over periodic grid shifts s of mean_x (A(x) - B(x + s))^2``, batched.
-
-    Arguments:
-        A: ``(S, n, n)``; B: ``(T, n, n)``.
-
-    Returns:
-        ``(S, T)``: ``mean A^2 + mean B^2 - 2 max_s corr(A, B)(s)`` (FFT cross-correlation).
-    """
-    n2 = A.shape[-1] * A.shape[-2]
-    Ah, Bh = torch.fft.fft2(A), torch.fft.fft2(B)
-    corr = torch.fft.ifft2(Ah[:, None].conj() * Bh[None, :]).real / n2  # (S, T, n, n)
-    best = corr.flatten(-2).max(dim=-1).values
-    a2 = (A * A).mean(dim=(-2, -1))
-    b2 = (B * B).mean(dim=(-2, -1))
-    return (a2[:, None] + b2[None, :] - 2.0 * best).clamp_min(0.0)
-
-
-def pattern_distance(V: Tensor, kind: str) -> Tensor:
-    """Distance matrix ``(S, S)`` between patterns ``V (S, n, n)`` (``rms`` or ``shift``)."""
-    if kind == "rms":
-        diff = V[:, None] - V[None, :]
-        return (diff * diff).mean(dim=(-2, -1)).clamp_min(1e-12).sqrt()
-    if kind == "shift":
-        return shift_invariant_sq_distance(V, V).clamp_min(1e-12).sqrt()
-    raise ValueError(f"unknown pattern distance {kind!r} (rms, shift)")
-
-
-def pseudo_time_step(W: Tensor, gs: GSParams, dt: float, count: int) -> Tensor:
-    """``count`` semi-implicit (IMEX Euler) steps of the Gray-Scott PDE on the training grid.
-
-    Diffusion and the linear decay (``-alpha u``, ``-(alpha + beta) v``) implicit per Fourier mode,
-    the rest (``-u v^2 + alpha``, ``+u v^2``) explicit; spectral Laplacian on the (translated) grid.
-    A state is a fixed point exactly when it solves the stationary equation 3 on the grid.
-
-    Arguments:
-        W: ``(S, 2, n, n)`` sampled ``(u, v)``.
-
-    Returns:
-        the advanced state, ``(S, 2, n, n)``.
-    """
-    n = W.shape[-1]
-    k = 2.0 * math.pi * torch.fft.fftfreq(n, d=1.0 / n, dtype=W.dtype, device=W.device)
-    k2 = k[:, None] ** 2 + k[None, :] ** 2
-    den = torch.stack([1.0 + dt * (gs.D_u * k2 + gs.alpha), 1.0 + dt * (gs.D_v * k2 + gs.alpha + gs.beta)])
-    for _ in range(count):
-        u, v = W[:, 0], W[:, 1]
-        uvv = u * v * v
-        N = torch.stack([W[:, 0] + dt * (gs.alpha - uvv), W[:, 1] + dt * uvv], dim=1)
-        W = torch.fft.ifft2(torch.fft.fft2(N) / den).real
-    return W
 
 
 class GrayScottTask(Task):
@@ -301,23 +184,9 @@ class GrayScottTask(Task):
                 return target
             return fourier_shift(c[2], off - c[1])
 
-    def finalize(self, model: nn.Module, run_dir: Path) -> list[Path]:
-        Z = self.Z if self.Z is not None else self.default_latents()
-        paths = write_patterns(model, Z, Path(run_dir), self.params.resolution, self.params.n_interpolation)
-        paths.append(write_pattern_explorer(model, Z, self.params.gs, Path(run_dir) / "figures" / "explorer.html",
-                                            title=f"gray-scott: {Path(run_dir).name}"))
-        return paths
-
-    def evaluate(self, model: nn.Module, resolution: int | None = None, out_dir: Path | None = None) -> dict:
-        """The four independent checks of :func:`ginn.eval.gray_scott.verify_run` on every trained latent."""
-        n = resolution or 256
-        Z = self.latents()
-        check_grid_memory(n * n * (1 if Z is None else Z.shape[0]), 160, f"resolution {n}")
-        res = verify_run(model, Z, self.params, resolution=n, out_dir=out_dir)
-        return {"problem": "gray-scott", **res}
-
-    def format_metrics(self, metrics: dict) -> str:
-        return json.dumps({k: v for k, v in metrics.items() if k != "latents"}, indent=2, default=float)
+    @property
+    def results(self) -> GrayScottResults:
+        return GrayScottResults(self)
 
     def default_latents(self) -> Tensor:
         """Fixed latents in the configured range, for the figures and views of a run whose latents

@@ -7,9 +7,9 @@ from pathlib import Path
 import torch
 from torch import nn
 
-from ..config import MirrorParams
-from ..eval.mirror import profile, reflected_direction
-from ..fields import evaluate
+from ...config import MirrorParams
+from ...fields import evaluate
+from .optics import profile, reflected_direction
 
 __all__ = ["plot_mirror"]
 

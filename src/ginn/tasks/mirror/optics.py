@@ -23,8 +23,8 @@ import numpy as np
 import torch
 from torch import Tensor, nn
 
-from ..config import MirrorParams, parse_task_params
-from ..fields import evaluate, value
+from ...config import MirrorParams, parse_task_params
+from ...fields import evaluate, value
 
 __all__ = ["exact_height", "reflected_direction", "focus_distance", "reflection_residual", "profile", "evaluate_mirror"]
 

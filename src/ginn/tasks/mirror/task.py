@@ -1,7 +1,7 @@
 """The parabolic mirror task (paper Section 4.1, Appendix A.3): a GINN for an explicit height function.
 
 The constraints are ``h(0) = 0`` (interface) and that every vertical ray reflects through the focus
-(optics; see :mod:`ginn.eval.mirror` for the geometry and the exact answer ``x^2 / (4 F)``).
+(optics; see :mod:`ginn.tasks.mirror.optics` for the geometry and the exact answer ``x^2 / (4 F)``).
 
 Model input width: the paper lists ``[2, 40, 40, 1]`` without explaining the second input; a height
 function of one variable has one input, so we use ``MLP(1, [40, 40], activation="tanh")``.
@@ -9,23 +9,20 @@ function of one variable has one input, so we use ``MLP(1, [40, 40], activation=
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any
 
-import numpy as np
 import torch
 from torch import Tensor, nn
 
-from ..config import LossTerm, MirrorParams, RunConfig, ShapeParams, parse_task_params
-from ..errors import ConfigError
-from ..eval.mirror import evaluate_mirror, exact_height, focus_distance, profile
-from ..fields import evaluate
-from ..models import MLP
-from ..train.task import Task
-from ..viz.explorer_pinn import write_mirror_view
-from ..viz.mirror import plot_mirror
+from ...config import LossTerm, MirrorParams, RunConfig, ShapeParams, parse_task_params
+from ...errors import ConfigError
+from ...fields import evaluate
+from ...models import MLP
+from ...train.task import Task
+from .optics import exact_height, focus_distance
+from .results import MirrorResults
 
-__all__ = ["MirrorTask", "parse_mirror_params", "sample_rays", "write_profile"]
+__all__ = ["MirrorTask", "parse_mirror_params", "sample_rays"]
 
 
 def parse_mirror_params(params: dict[str, Any] | MirrorParams | ShapeParams | None) -> MirrorParams:
@@ -92,26 +89,6 @@ class MirrorTask(Task):
             out["_max_abs_error"] = (v.f.detach() - exact_height(x, p.focus)).abs().max()
         return out
 
-    def finalize(self, model: nn.Module, run_dir: Path) -> list[Path]:
-        run_dir = Path(run_dir)
-        run_dir.mkdir(parents=True, exist_ok=True)
-        paths = write_profile(model, self.params, run_dir)
-        paths.append(plot_mirror(model, self.params, run_dir / "mirror.png"))
-        paths.append(write_mirror_view(model, self.params, run_dir / "figures" / "explorer.html", title=f"mirror: {run_dir.name}"))
-        return paths
-
-    def evaluate(self, model: nn.Module, resolution: int | None = None, out_dir: Path | None = None) -> dict:
-        """Errors against the exact parabola (:func:`ginn.eval.mirror.evaluate_mirror`)."""
-        return {"problem": "mirror", **evaluate_mirror(model, self.params)}
-
-
-def write_profile(model: nn.Module, params: MirrorParams, run_dir: Path) -> list[Path]:
-    """Write the profile ``x, h(x), x^2/(4F)`` as ``mirror_profile.csv`` and ``mirror_profile.npy`` ``(n, 3)``."""
-    p = params
-    x, h = profile(model, p, p.n_eval)
-    table = np.stack([x, h, x * x / (4.0 * p.focus)], axis=1)
-    run_dir = Path(run_dir)
-    csv, npy = run_dir / "mirror_profile.csv", run_dir / "mirror_profile.npy"
-    np.savetxt(csv, table, delimiter=",", header="x,h,exact", comments="")
-    np.save(npy, table)
-    return [csv, npy]
+    @property
+    def results(self) -> MirrorResults:
+        return MirrorResults(self.params)

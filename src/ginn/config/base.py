@@ -1,0 +1,50 @@
+"""The building blocks of every configuration group: strict frozen models, loss terms, dtypes and
+the default grid resolutions."""
+
+from __future__ import annotations
+
+import math
+from typing import Literal
+
+import torch
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+__all__ = ["Strict", "LossTerm", "DTYPES", "STRAIN_CLIP", "RESOLUTION", "default_resolution"]
+
+#: Names of the floating-point types a run may train in (``training.dtype``).
+DTYPES = {"float32": torch.float32, "float64": torch.float64}
+
+#: Per-point surface strain is clipped at this value (training loss and metric alike).
+STRAIN_CLIP = 1000.0
+
+#: Grid cells along the longest domain axis when none is given, by purpose and dimension:
+#: ``eval`` for the metrics of ``ginn eval``, ``output`` for the shapes a run writes, ``figure``
+#: for a figure drawn on its own (3D renders cost time per triangle), ``check`` for the feasibility
+#: checks during training.
+RESOLUTION = {"eval": {2: 512, 3: 128}, "output": {2: 256, 3: 128}, "figure": {2: 256, 3: 64}, "check": {2: 128, 3: 64}}
+
+
+def default_resolution(purpose: Literal["eval", "output", "figure", "check"], dim: int) -> int:
+    """The grid resolution used for ``purpose`` in ``dim`` dimensions (see :data:`RESOLUTION`)."""
+    return RESOLUTION[purpose][dim]
+
+
+class Strict(BaseModel):
+    """A configuration group: unknown keys refused, frozen, every float finite."""
+
+    # every float is finite: nan and inf are refused where they are read, not found later as a divergence
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+
+class LossTerm(Strict):
+    """Weight and first iteration of one loss term (weight 0 switches it off)."""
+
+    weight: float = Field(0.0, ge=0, description="weight of the term (0 switches it off; a finite number)")
+    start: int = Field(0, ge=0, description="first iteration at which the term is active")
+
+    @field_validator("weight")
+    @classmethod
+    def _finite(cls, v: float) -> float:
+        if not math.isfinite(v):
+            raise ValueError("weight must be finite")
+        return v

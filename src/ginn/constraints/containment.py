@@ -1,0 +1,139 @@
+"""Containment: the shape stays inside the design region E and out of the obstacles.
+
+Losses: ``mean |min(0, f - floor)|^p`` over the samples of X \\ E (``design_region``) and inside
+the obstacles (``obstacle``), :class:`ginn.losses.DesignRegionLoss` with ``p =
+losses.containment_power``. The *containment floor* (``losses.containment_slope`` times the
+distance into the forbidden set; 0 gives the paper's loss) asks for a field at least that deep
+there: a signed distance field of any shape inside E is, so the floor is exact for slope 1 and
+rejects the nearly flat, slightly positive fields the paper's loss accepts. With a floor, the
+shapes' surface samples that lie outside E join the design-region term, each at its depth: where
+a shape overhangs E by a thin sliver few uniform samples fall into it, while every surface sample
+on it is penalised, so the push scales with the overhang's area instead of its volume.
+
+Verdict (both terms enforce it): ``volume_outside_off_interfaces <= tolerances.volume_outside``,
+the volume outside E beyond the interface tolerance of the interfaces (:mod:`ginn.eval.metrics`;
+metrics without it, of older runs, are judged by ``volume_outside``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import torch
+from torch import Tensor
+
+from ..geometry.base import Region
+from ..losses.constraints import DesignRegionLoss, ObstacleLoss
+from ..problems.problem import Problem
+from .base import Constraint, Setting, Stage
+from .batch import Batch
+from .samples import OBSTACLE, OUTSIDE
+from .verdict import Verdict, Violation
+
+__all__ = ["DesignRegion", "Obstacle", "VolumeOutside", "containment_floor", "judged_volume_outside"]
+
+
+def judged_volume_outside(metrics: Mapping) -> float | None:
+    """The volume outside E that the verdict bounds: ``volume_outside_off_interfaces`` where
+    measured, else ``volume_outside``."""
+    v = metrics.get("volume_outside_off_interfaces")
+    return metrics.get("volume_outside") if v is None else v
+
+
+class VolumeOutside(Verdict):
+    """The volume of the shape outside E, over ``vol(X \\ E)``, within ``tolerances.volume_outside``."""
+
+    name = "volume_outside"
+
+    def __init__(self, problem: Problem):
+        super().__init__(problem)
+        self.metrics = ("volume_outside", "volume_outside_off_interfaces")
+        self.bound = problem.tolerances.volume_outside
+
+    def violation(self, metrics: Mapping) -> Violation | None:
+        vol = judged_volume_outside(metrics)
+        return Violation(float(vol), self.bound) if vol is not None and vol > self.bound else None
+
+    def ratio(self, metrics: Mapping) -> float | None:
+        vol = judged_volume_outside(metrics)
+        return None if vol is None else float(vol) / self.bound
+
+
+def containment_floor(x: Tensor, regions: Region | Sequence[Region], sign: float, slope: float) -> Tensor | float:
+    """``slope`` times the distance of each sample ``x (S, n, d)`` into the forbidden set, ``(S * n,)``
+    (detached): outside E (``sign = 1``: the design region's SDF) or into an obstacle (``sign =
+    -1``: minus the obstacle's SDF, the largest over the obstacles); 0 when the slope is 0."""
+    if slope == 0:
+        return 0.0
+    flat = x.reshape(-1, x.shape[-1])
+    regions = regions if isinstance(regions, (list, tuple)) else [regions]
+    depth = torch.stack([sign * r.sdf(flat) for r in regions]).amax(dim=0)
+    return slope * depth.clamp_min(0.0).detach()
+
+
+class _Containment(Constraint):
+    def __init__(self, setting: Setting):
+        super().__init__(setting)
+        self._verdict = VolumeOutside(setting.problem)
+
+    @property
+    def verdict(self) -> VolumeOutside:
+        return self._verdict
+
+    @property
+    def slope(self) -> float:
+        return self.setting.cfg.losses.containment_slope
+
+    def target(self) -> float:
+        """``volume_outside * d^p``: at most the tolerated share of the samples inside the shape,
+        by at most ``d`` (half the interface tolerance)."""
+        p = self.setting.cfg.losses.containment_power
+        return self.setting.problem.tolerances.volume_outside * self.setting.half_tolerance() ** p
+
+
+class DesignRegion(_Containment):
+    """The shape inside E (see the module docstring). With a containment floor it evaluates the
+    field at the surface samples outside E, points of its own: a :attr:`Stage.FIELD` term."""
+
+    name = "design_region"
+    stage = Stage.FIELD
+    samples = (OUTSIDE,)
+
+    def __init__(self, setting: Setting):
+        super().__init__(setting)
+        self.fn = DesignRegionLoss(power=setting.cfg.losses.containment_power)
+
+    def loss(self, batch: Batch) -> Tensor | None:
+        if "outside" not in batch.f:
+            return None
+        E = self.setting.problem.design_region
+        fo = batch.f["outside"].reshape(-1) - containment_floor(batch.x["outside"], E, 1.0, self.slope)
+        if self.slope == 0:
+            return self.fn(fo)
+        srf = batch.surface()
+        flat = srf.x.reshape(-1, batch.d)
+        with torch.no_grad():
+            out = srf.converged.reshape(-1) & ~self.setting.membership.contains(flat)
+        if bool(out.any()):
+            xs = flat[out]
+            zs = None if batch.Z is None else batch.latents_of(srf.x)[out]
+            fs = batch.model(xs, zs) - containment_floor(xs[None], E, 1.0, self.slope)
+            fo = torch.cat([fo, fs])
+        return self.fn(fo)
+
+
+class Obstacle(_Containment):
+    """The shape out of the obstacles (see the module docstring)."""
+
+    name = "obstacle"
+    samples = (OBSTACLE,)
+
+    def __init__(self, setting: Setting):
+        super().__init__(setting)
+        self.fn = ObstacleLoss(power=setting.cfg.losses.containment_power)
+
+    def loss(self, batch: Batch) -> Tensor | None:
+        if "obstacle" not in batch.f:
+            return None
+        fo = batch.f["obstacle"].reshape(-1)
+        return self.fn(fo - containment_floor(batch.x["obstacle"], self.setting.problem.obstacles, -1.0, self.slope))
