@@ -131,6 +131,7 @@ def _scaled_problem(k: float) -> dict:
         "defaults": {"latents": {"n_shapes": 2}, "losses": {"connectedness": {"weight": 0.0}}}}
 
 
+@pytest.mark.long
 def test_a_problem_and_its_scaled_copy_train_alike():
     """With the derived settings a problem drawn 10 times larger trains the same network: the
     losses are equal and the inner weights follow the same path (up to rounding; in float64, as
@@ -169,4 +170,20 @@ def test_first_layer_frequency_follows_the_smallest_interface_and_the_tolerance(
         "tolerances": {"interface": tolerance}})
     assert smallest_feature(spec.build()) == pytest.approx(radius)
     assert spec.config().model.w0_first == pytest.approx(expected)
-    assert f"a = {radius:.4g} the smallest interface" in " ".join(spec.derived_notes(spec.config()))
+    assert f"max(5, s / (2 a), sqrt(s / h)), s = 1, a = {radius:.4g}, h = {tolerance:.4g}" in " ".join(
+        spec.derived_notes(spec.config()))
+
+
+def test_every_derived_setting_is_a_rule_and_in_the_spec_reference():
+    """One copy of each derived constant: the rules give the settings, the notes and the docs table."""
+    from ginn.config import flattened
+    from ginn.problems.derived import RULES
+
+    paths = [r.path for r in RULES]
+    assert len(paths) == len(set(paths))
+    for dim in (2, 3):
+        d, why = derived_defaults(_spec(1.0, dim=dim).build())
+        assert set(flattened(d)) == set(why) <= set(paths)
+    text = (Path(__file__).resolve().parents[1] / "docs" / "problem-spec.md").read_text()
+    for r in RULES:
+        assert f"| `{r.path}` | {r.formula} |" in text, r.path
