@@ -1,6 +1,6 @@
 """One `ginn` command run alternately with this tree and with an earlier commit's source.
 
-    python benchmarks/against_commit.py --base 644e519 --runs 3 \\
+    python benchmarks/against_commit.py --base HEAD~20 --runs 3 \\
         --this-extra="--set training.feasibility_checks=0" -- \\
         train obstacle --preset quick --iterations 200 --no-results --quiet
 
@@ -21,7 +21,7 @@ steps and the feasibility checks between them, without start-up and results) and
 which compares runs of different lengths, and the same from the end of the first iteration on
 (without what a run pays once when it starts training, such as compiling kernels):
 
-    python benchmarks/against_commit.py --base aa29841 --runs 2 --threads 2 \\
+    python benchmarks/against_commit.py --base REV --runs 2 --threads 2 \\
         --base-extra="--preset quick" -- train obstacle --no-results --quiet
 """
 

@@ -1,15 +1,20 @@
-"""The package structure: every module imports on its own, the packages form no import cycle,
-ginn modules are imported at the top of a module (no hidden function-local imports), and no
-module reaches into another module's private names."""
+"""The package structure: imports follow the layers docs/architecture.md lists, every module
+imports on its own, the packages form no import cycle, ginn modules are imported at the top of a
+module (no hidden function-local imports), and no module reaches into another module's private
+names."""
 
 import ast
+import json
 import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 import ginn
 
 SRC = Path(ginn.__file__).resolve().parent
+ARCHITECTURE = Path(__file__).resolve().parents[1] / "docs" / "architecture.md"
 #: the façade and the entry point may import from every package
 FACADES = {"ginn", "ginn.__main__"}
 
@@ -74,21 +79,63 @@ def _owner(target: str, modules: dict[str, Path]) -> str | None:
     return target or None
 
 
-def test_package_graph_is_acyclic():
-    modules = _modules()
-    edges: dict[str, set[str]] = {}
+def _package_imports(modules: dict[str, Path]) -> list[tuple[str, str, str]]:
+    """``(package, imported package, where)`` of every import between two packages."""
+    out = []
     for name, path in modules.items():
         if name in FACADES:
             continue
         src = _package(name, modules)
-        for target, _, _, _ in _imports(name, path):
+        for target, line, _, _ in _imports(name, path):
             owner = _owner(target, modules)
             if owner is None or owner in FACADES:
                 assert owner not in FACADES, f"{name} imports the façade {owner}"
                 continue
             dst = _package(owner, modules)
             if dst != src:
-                edges.setdefault(src, set()).add(dst)
+                out.append((src, dst, f"{name}:{line} imports {target}"))
+    return out
+
+
+def _layers() -> dict[str, int]:
+    """Each package's layer, from the list under "## Layers" in docs/architecture.md (0 at the
+    bottom); ``ginn/__init__`` is the façade."""
+    block = ARCHITECTURE.read_text().split("## Layers", 1)[1].split("```", 2)[1]
+    rank = {}
+    for i, line in enumerate(ln for ln in block.splitlines() if ln.strip()):
+        for name in line.split("  ")[0].split(","):
+            rank[name.strip()] = i
+    return rank
+
+
+def layer_violations(imports: list[tuple[str, str, str]], rank: dict[str, int]) -> list[str]:
+    """The imports of a package from a higher layer, and the packages the list leaves out."""
+    bad = [f"{where}: {src} (layer {rank[src]}) imports {dst} (layer {rank[dst]})"
+           for src, dst, where in imports if src in rank and dst in rank and rank[dst] > rank[src]]
+    bad += sorted({f"package {p} is in no layer of docs/architecture.md" for s, d, _ in imports for p in (s, d)
+                   if p not in rank})
+    return bad
+
+
+def test_imports_follow_the_documented_layers():
+    assert not layer_violations(_package_imports(_modules()), _layers())
+
+
+def test_an_upward_import_fails_the_layer_check(tmp_path):
+    """The check catches an import against the order: geometry importing the evaluation."""
+    modules = _modules()
+    bent = tmp_path / "base.py"
+    bent.write_text(modules["ginn.geometry.base"].read_text() + "\nfrom ..eval import metrics  # noqa\n")
+    bad = layer_violations(_package_imports({**modules, "ginn.geometry.base": bent}), _layers())
+    assert len(bad) == 1 and "geometry (layer 2) imports eval (layer 6)" in bad[0]
+    assert "package nowhere is in no layer" in layer_violations([("nowhere", "errors", "x")], _layers())[0]
+
+
+def test_package_graph_is_acyclic():
+    modules = _modules()
+    edges: dict[str, set[str]] = {}
+    for src, dst, _ in _package_imports(modules):
+        edges.setdefault(src, set()).add(dst)
     # depth-first search for a cycle
     state: dict[str, int] = {}
     stack: list[str] = []
@@ -108,9 +155,10 @@ def test_package_graph_is_acyclic():
     for u in sorted(edges):
         if state.get(u) is None:
             visit(u)
-    # the layering the docs describe: config depends on nothing of ginn but errors, train on no task
+    # what the layers' notes say: config depends on nothing of ginn but errors, train on no task
+    # and no evaluation
     assert edges.get("config", set()) <= {"errors"}
-    assert "tasks" not in edges.get("train", set()) and "runs" not in edges.get("train", set())
+    assert not edges.get("train", set()) & {"tasks", "runs", "eval", "constraints"}
     assert not edges.get("errors")
 
 
@@ -131,32 +179,90 @@ def test_ginn_imports_are_at_module_level_and_public():
     assert not bad, "\n".join(bad)
 
 
+def _closures(modules: dict[str, Path]) -> dict[str, list[str]]:
+    """Every module's ginn dependencies, transitively: the modules it imports and the packages
+    above it (whose ``__init__`` runs first), without the façade ``ginn``."""
+    direct: dict[str, set[str]] = {}
+    for name, path in modules.items():
+        deps = {o for t, *_ in _imports(name, path) if (o := _owner(t, modules)) not in (None, "ginn")}
+        parts = name.split(".")
+        deps |= {".".join(parts[:i]) for i in range(2, len(parts))} & set(modules)
+        direct[name] = deps - {name}
+    out = {}
+    for name in modules:
+        seen, todo = set(), list(direct[name])
+        while todo:
+            m = todo.pop()
+            if m not in seen:
+                seen.add(m)
+                todo += direct.get(m, ())
+        out[name] = sorted(seen)
+    return out
+
+
+@pytest.mark.long
 def test_every_module_imports_on_its_own():
-    """Each module imported first in a clean ``sys.modules`` (one interpreter; ginn's modules are
-    dropped between imports), so no module relies on another having been imported before it."""
-    names = sorted(n for n in _modules() if n != "ginn.__main__")
+    """Each module imported with nothing of ginn loaded but what it imports itself (directly or
+    through the modules it imports, and the packages above it; the package ``ginn`` a bare
+    namespace, its ``__init__``, which imports everything, not run), so that no module relies on
+    another having been imported before it; then the façade itself, in a clean ``sys.modules``."""
+    modules = _modules()
+    closures = _closures({n: p for n, p in modules.items() if n not in FACADES})
     code = (
-        "import importlib, sys, traceback\n"
-        f"names = {names!r}\n"
+        "import importlib, json, sys, types\n"
+        f"src = {str(SRC)!r}\n"
+        "closures = json.loads(sys.stdin.read())\n"
         "bad = []\n"
-        "for n in names:\n"
-        "    for k in [k for k in sys.modules if k == 'ginn' or k.startswith('ginn.')]:\n"
+        "for n, keep in closures.items():\n"
+        "    keep = set(keep) | {'ginn'}\n"
+        "    for k in [k for k in sys.modules if (k == 'ginn' or k.startswith('ginn.')) and k not in keep]:\n"
         "        del sys.modules[k]\n"
+        "    for k, m in list(sys.modules.items()):  # a package keeps no attribute for a module gone\n"
+        "        if k.startswith('ginn') and hasattr(m, '__path__'):\n"
+        "            for a, v in list(vars(m).items()):\n"
+        "                if isinstance(v, types.ModuleType) and v.__name__.startswith('ginn.') and v.__name__ not in sys.modules:\n"
+        "                    delattr(m, a)\n"
+        "    if 'ginn' not in sys.modules:\n"
+        "        bare = types.ModuleType('ginn')\n"
+        "        bare.__path__ = [src]\n"
+        "        sys.modules['ginn'] = bare\n"
         "    try:\n"
         "        importlib.import_module(n)\n"
         "    except Exception as e:\n"
         "        bad.append(f'{n}: {type(e).__name__}: {e}')\n"
+        "for k in [k for k in sys.modules if k == 'ginn' or k.startswith('ginn.')]:\n"
+        "    del sys.modules[k]\n"
+        "importlib.import_module('ginn')\n"
         "print('\\n'.join(bad))\n"
         "sys.exit(1 if bad else 0)\n"
     )
-    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600)
+    r = subprocess.run([sys.executable, "-c", code], input=json.dumps(closures), capture_output=True, text=True,
+                       timeout=600)
     assert r.returncode == 0, r.stdout + r.stderr
-    assert len(names) > 60
+    assert len(closures) > 60
+
+
+def test_the_import_check_catches_a_module_relying_on_another(tmp_path):
+    """A module that uses a package it never imports (here ``ginn.errors`` through the bare
+    ``ginn`` namespace) fails when loaded with only its own closure."""
+    pkg = tmp_path / "ginn"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "errors.py").write_text("X = 1\n")
+    (pkg / "user.py").write_text("import ginn\nY = ginn.errors.X\n")
+    code = ("import importlib, sys, types\n"
+            f"bare = types.ModuleType('ginn'); bare.__path__ = [{str(pkg)!r}]; sys.modules['ginn'] = bare\n"
+            "importlib.import_module('ginn.errors')\n"
+            "del sys.modules['ginn.errors']; del bare.errors\n"
+            "importlib.import_module('ginn.user')\n")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert r.returncode != 0 and "has no attribute 'errors'" in r.stderr
 
 
 def test_public_api_names_resolve():
     for name in ginn.__all__:
         assert hasattr(ginn, name), name
-    for mod in (ginn.train, ginn.tasks, ginn.extract, ginn.eval, ginn.viz, ginn.models, ginn.losses, ginn.topology):
+    for mod in (ginn.train, ginn.tasks, ginn.extract, ginn.eval, ginn.viz, ginn.models, ginn.losses, ginn.topology,
+                ginn.constraints):
         for name in mod.__all__:
             assert hasattr(mod, name), f"{mod.__name__}.{name}"

@@ -110,6 +110,29 @@ def test_no_lab_notebook(where):
     assert not bad, "\n".join(bad)
 
 
+#: what a reference page must not hold: commits (hex words of 7 to 40 digits and letters), the
+#: project's issues by number, and the changes of a diary ("no longer", "fell from ... to ..."); a
+#: page says what the code does, the git log what changed
+_HISTORY = re.compile(r"(?<![\w.#-])(?=[0-9a-f]*[a-f])(?=[0-9a-f]*[0-9])[0-9a-f]{7,40}(?![\w.-])"
+                      r"|\bissues? ?(?:#|no\. ?)?-?\d+|\bissue-\d+|#\d{1,4}\b|\bno longer\b|\bfell from\b")
+
+
+@pytest.mark.parametrize("page", sorted(p.name for p in DOCS.glob("*.md")) + ["README.md"])
+def test_reference_pages_cite_no_commit_or_issue(page):
+    path = ROOT / page if page == "README.md" else DOCS / page
+    bad = [f"{page}:{i}: {m.group(0)!r} in {line.strip()[:100]}"
+           for i, line in enumerate(path.read_text().splitlines(), 1) if (m := _HISTORY.search(line))]
+    assert not bad, "\n".join(bad)
+
+
+def test_the_history_pattern_catches_commits_and_issues():
+    for text in ("measured against aa29841", "issue 7's bounds", "the issue-9 bounds", "see #31", "(issue #12)",
+                 "the loss no longer saw it", "the step fell from 0.1 to 0.08 s"):
+        assert _HISTORY.search(text), text
+    for text in ("a 2-core CPU", "0.7071067811865476e-01", "16x16 grid", "seed 1234567", "float32", "deadbeef-like"):
+        assert not _HISTORY.search(text), text
+
+
 def test_the_guide_to_your_own_problem_shows_a_valid_spec():
     """The spec in docs/your-own-problem.md loads, builds and has the suite's geometry."""
     from ginn.problems import load_spec
