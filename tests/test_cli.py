@@ -1,7 +1,7 @@
 """The `ginn` command line: one-line errors with exit status 2, and a train -> eval -> export -> plot -> resume round trip."""
 
 import json
-import subprocess
+import runpy
 import sys
 
 import pytest
@@ -86,9 +86,13 @@ def test_train_eval_export_plot_resume_round_trip(tmp_path, capsys):
     assert json.loads((run / "status.json").read_text())["step"] == 5
 
 
-@pytest.mark.long
-def test_module_entry_point_help():
-    r = subprocess.run([sys.executable, "-m", "ginn", "--help"], capture_output=True, text=True, timeout=120)
-    assert r.returncode == 0
+def test_module_entry_point_help(monkeypatch, capsys):
+    """``python -m ginn --help`` runs ginn/__main__.py (here in this process, as ``-m`` would)."""
+    monkeypatch.setattr(sys, "argv", ["ginn", "--help"])
+    sys.modules.pop("ginn.__main__", None)
+    with pytest.raises(SystemExit) as exit_:
+        runpy.run_module("ginn", run_name="__main__", alter_sys=True)
+    assert exit_.value.code == 0
+    out = capsys.readouterr().out
     for cmd in ("train", "resume", "problems", "eval", "export", "plot", "view", "sweep"):
-        assert cmd in r.stdout
+        assert cmd in out

@@ -29,11 +29,28 @@ def is_png(p):
     return p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
-def test_loss_series_order():
-    from ginn.viz.plot import _series_order
+def test_loss_curve_panels_group_families_in_order():
+    from ginn.viz.curves import loss_curve_panels
 
-    keys = ["lr", "_boundary_converged", "interface", "total", "eikonal", "grad_norm"]
-    assert sorted(keys, key=_series_order) == ["total", "eikonal", "interface", "grad_norm", "lr", "_boundary_converged"]
+    records = [
+        {"step": 0, "eikonal": 0.5, "total": 2.0, "interface": 1.5, "lr": 1e-3, "grad_norm": 3.0, "time": 9.0,
+         "_boundary_converged": 1.0, "multipliers": {"interface": 1.0, "eikonal": 0.1}},
+        {"step": 1, "eikonal": 0.4, "total": 1.0, "interface": float("nan"), "lr": 1e-3, "grad_norm": 2.0,
+         "multipliers": {"interface": 2.0, "eikonal": 0.1}},
+        {"event": "feasibility", "step": 2, "feasible": 0.0, "shapes": 4, "ratios": {"interface": 3.0},
+         "worst": {"interface_cd1": 0.2}, "mean": {"ratios": {"interface": 1.5}}, "ok": True},
+        {"step": 2, "total": 0.5},
+    ]
+    panels = loss_curve_panels(records)
+    assert list(panels) == ["losses", "multipliers", "lr", "grad_norm", "diagnostics", "feasibility",
+                            "feasibility: mean.ratios", "feasibility: ratios", "feasibility: worst"]
+    assert list(panels["losses"]) == ["total", "eikonal", "interface"]  # total first, then by name
+    assert panels["losses"]["total"] == ([0.0, 1.0, 2.0], [2.0, 1.0, 0.5])
+    assert panels["losses"]["interface"] == ([0.0], [1.5])  # the NaN left out
+    assert panels["multipliers"]["interface"] == ([0.0, 1.0], [1.0, 2.0])
+    assert panels["feasibility"] == {"feasible": ([2.0], [0.0]), "shapes": ([2.0], [4.0])}  # no bool, no time
+    assert panels["feasibility: mean.ratios"] == {"interface": ([2.0], [1.5])}
+    assert list(loss_curve_panels(records, keys=["lr"])) == ["lr"]
 
 
 def test_interpolation_latents_sorted_with_midpoints():

@@ -11,7 +11,8 @@ which writes (PNG):
 * ``interpolation.png``: trained shapes (colour) alternating with the shapes of the latent
   mid-points between neighbouring trained latents (grey) (Figure 6). Neighbours: consecutive
   latents after sorting by value for 1D latents, else in the given order.
-* ``loss_curves.png``: every numeric series of ``metrics.jsonl`` against the step.
+* ``loss_curves.png``: the series of ``metrics.jsonl`` against the step, a panel per family
+  (:mod:`ginn.viz.curves`).
 * ``shape_XXX_views.png`` (3D): several views of each shape, with the design region's envelope and
   the interfaces drawn faintly.
 """
@@ -24,8 +25,6 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 from torch import Tensor
 
 from ..config import default_resolution
@@ -36,7 +35,8 @@ from ..extract.sampling import sample_field
 from ..fields import Field
 from ..geometry.base import Box, Region
 from ..problems.problem import Problem
-from ..train.rundir import read_metrics
+from .curves import plot_loss_curves
+from .figure import new_figure, save_figure
 
 __all__ = [
     "new_figure",
@@ -58,20 +58,6 @@ __all__ = [
 #: (elevation, azimuth) in degrees of the 3D views.
 DEFAULT_VIEWS = ((25.0, 45.0), (25.0, 135.0), (25.0, -60.0), (89.0, -90.0))
 GREY = "#8c8c8c"
-
-
-def new_figure(width: float, height: float, dpi: int = 120) -> Figure:
-    """A matplotlib figure attached to an Agg canvas."""
-    fig = Figure(figsize=(width, height), dpi=dpi)
-    FigureCanvasAgg(fig)
-    return fig
-
-
-def save_figure(fig: Figure, path: str | Path) -> Path:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, bbox_inches="tight")
-    return path
 
 
 # --- 2D -----------------------------------------------------------------------------------------------
@@ -380,67 +366,6 @@ def plot_interpolation(
         label = ("z = " if t else "mid z = ") + ", ".join(f"{v:.3g}" for v in lat[i].reshape(-1).tolist())
         _draw_panel(fig, rows, cols, i, b, problem, color, title=label)
         k += int(t)
-    return save_figure(fig, path)
-
-
-def _flatten(d: dict, prefix: str = "") -> dict:
-    out = {}
-    for k, v in d.items():
-        key = f"{prefix}{k}"
-        if isinstance(v, dict):
-            out.update(_flatten(v, key + "."))
-        elif isinstance(v, (int, float)) and not isinstance(v, bool) and v is not None:
-            out[key] = float(v)
-    return out
-
-
-_STEP_KEYS = ("step", "epoch", "iteration", "iter", "it")
-_SKIP_KEYS = ("time", "seconds", "lr_scale")
-_LAST_KEYS = ("lr", "grad_norm")
-
-
-def _series_order(k: str) -> tuple:
-    """``total``/``loss`` first, then the loss terms, then ``lr``/``grad_norm``, then ``_diagnostics``."""
-    if k in ("total", "loss") or k.startswith("loss"):
-        return (0, k)
-    if k.startswith("_"):
-        return (3, k)
-    if k in _LAST_KEYS:
-        return (2, k)
-    return (1, k)
-
-
-def plot_loss_curves(metrics_jsonl: str | Path, path: str | Path, keys: Sequence[str] | None = None) -> Path:
-    """Every numeric series of a JSON-lines log (nested dicts flattened as ``a.b``) against the
-    step (``step``/``epoch``/``iteration``, else the line number); log scale where positive and
-    spanning decades. One panel per series: ``total`` first, then the loss terms, ``lr`` and
-    ``grad_norm``, then ``_diagnostics``; wall-clock keys (``time``) are skipped."""
-    rows = [_flatten(rec) for rec in read_metrics(Path(metrics_jsonl))]
-    series: dict[str, tuple[list, list]] = {}
-    for i, r in enumerate(rows):
-        step = next((r[k] for k in _STEP_KEYS if k in r), float(i))
-        for k, v in r.items():
-            if k in _STEP_KEYS or k in _SKIP_KEYS or (keys is not None and k not in keys) or not math.isfinite(v):
-                continue
-            series.setdefault(k, ([], []))
-            series[k][0].append(step)
-            series[k][1].append(v)
-    names = sorted(series, key=_series_order)
-    n = max(1, len(names))
-    cols = min(n, 3)
-    nrows = int(math.ceil(n / cols))
-    fig = new_figure(4.5 * cols, 3.0 * nrows)
-    for i, k in enumerate(names):
-        ax = fig.add_subplot(nrows, cols, i + 1)
-        x, y = series[k]
-        ax.plot(x, y, lw=0.9)
-        if all(v > 0 for v in y) and max(y) / max(min(y), 1e-300) > 20:
-            ax.set_yscale("log")
-        ax.set_title(k, fontsize=8)
-        ax.tick_params(labelsize=7)
-        ax.grid(alpha=0.3)
-    if not names:
-        fig.add_subplot(1, 1, 1).text(0.5, 0.5, "no numeric series", ha="center")
     return save_figure(fig, path)
 
 
