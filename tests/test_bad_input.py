@@ -9,6 +9,7 @@ import subprocess
 from pathlib import Path
 
 import pytest
+import torch
 
 from ginn import runs
 from ginn.cli import main
@@ -116,8 +117,10 @@ CASES = {
     "export --latent nan": (lambda r, t: ["export", r, "--latent", "nan"], "--latent"),
     "2D export --format stl": (lambda r, t: ["export", r, "--format", "stl"], "--format stl"),
     "--iterations 0": (lambda r, t: ["train", "obstacle", "--iterations", "0"], "--iterations"),
-    "resume below the current step": (lambda r, t: ["resume", _copy(r, t / "r"), "--iterations", "3"],
-                                      "already at iteration 6"),
+    "device through --set": (lambda r, t: ["train", "obstacle", "--set", "device=tpu", "--out", str(t / "o")],
+                             "config field 'device'"),
+    "resume a completed run below its step": (lambda r, t: ["resume", _copy(r, t / "r"), "--iterations", "3"],
+                                              "complete at iteration 6"),
     "0-byte checkpoint": (lambda r, t: _empty_ckpt(_copy(r, t / "r")), "empty (0 bytes)"),
     "random-bytes checkpoint": (lambda r, t: _random_ckpt(_copy(r, t / "r")), "not a torch checkpoint"),
     "corrupt config.yaml": (lambda r, t: _corrupt_config(_copy(r, t / "r")), "config.yaml: YAML syntax error"),
@@ -262,16 +265,23 @@ def test_the_python_api_refuses_the_same_inputs(run_dir):
 
 def test_a_run_directory_is_claimed_by_one_process(tmp_path):
     from ginn.errors import ConfigError
+    from ginn.train.lock import LOCK_NAME
     from ginn.train.rundir import new_run_dir
 
     out = tmp_path / "out"
-    assert new_run_dir("x", out) == out
-    with pytest.raises(ConfigError, match="another process"):  # claimed by this (live) process
+    path, lock = new_run_dir("x", out)
+    assert path == out and lock.held
+    with pytest.raises(ConfigError, match=r"another process writes a run there \(pid \d+ on .*, since 20"):
         new_run_dir("x", out)
-    (out / ".ginn-claim").write_text("999999999")  # left by a process that is gone: taken over
-    assert new_run_dir("x", out) == out
-    a, b = new_run_dir("x", root=tmp_path / "runs"), new_run_dir("x", root=tmp_path / "runs")
-    assert a != b and a.is_dir() and b.is_dir()
+    lock.release()  # as when its process ends, however it ends: taken again
+    path, lock = new_run_dir("x", out)
+    lock.release()
+    (out / "config.yaml").write_text("{}")
+    with pytest.raises(ConfigError, match="not empty"):
+        new_run_dir("x", out)
+    assert [p.name for p in out.iterdir()].count(LOCK_NAME) == 1
+    (a, la), (b, lb) = new_run_dir("x", root=tmp_path / "runs"), new_run_dir("x", root=tmp_path / "runs")
+    assert a != b and a.is_dir() and b.is_dir() and la.held and lb.held
 
 
 def test_config_yaml_holds_only_the_model_fields_of_its_kind(run_dir):
@@ -280,3 +290,24 @@ def test_config_yaml_holds_only_the_model_fields_of_its_kind(run_dir):
     model = yaml.safe_load((run_dir / "config.yaml").read_text())["model"]
     assert model["kind"] == "siren" and "w0_first" in model and "hidden" in model
     assert not {"width", "n_blocks", "sigma", "n_features", "activation"} & set(model)
+
+
+@pytest.mark.skipif(torch.cuda.is_available(), reason="needs a machine without CUDA")
+def test_a_gpu_run_opens_on_a_cpu_machine(run_dir, tmp_path, capsys):
+    """A run recorded with ``device: cuda`` is read here on the CPU; resuming it needs the choice
+    said (``--device cpu``), in one line."""
+    import yaml
+
+    r = _copy(run_dir, tmp_path / "r")
+    cfg = yaml.safe_load((r / "config.yaml").read_text())
+    (r / "config.yaml").write_text(yaml.safe_dump({**cfg, "device": "cuda"}, sort_keys=False))
+    assert main(["eval", str(r), "--resolution", "32"]) == 0
+    assert main(["export", str(r), "--resolution", "32", "--out", str(tmp_path / "ex")]) == 0
+    assert main(["view", str(r), "--steps", "2", "--out", str(tmp_path / "e.html")]) == 0
+    capsys.readouterr()
+    assert main(["resume", str(r), "--iterations", "8"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "trains on cuda" in err and "--device cpu" in err
+    assert main(["resume", str(r), "--iterations", "8", "--device", "cpu", "--quiet", "--no-results"]) == 0
+    assert runs.load_run(r).step == 8
+    assert main(["eval", str(r), "--device", "cuda"]) == 2 and "CUDA is not available" in capsys.readouterr().err

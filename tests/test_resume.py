@@ -5,8 +5,8 @@ cut back to the checkpoint; status.json tells a killed run from a running one.""
 import json
 import os
 import random
-import shutil
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -207,26 +207,106 @@ def test_resume_without_a_checkpoint_restarts_from_the_config(tmp_path, capsys):
 
     from ginn.train.rundir import new_run_dir, write_run_files
 
-    write_run_files(new_run_dir("obstacle", out), cfg, Path(spec.source))
+    _, lock = new_run_dir("obstacle", out)
+    write_run_files(out, cfg, Path(spec.source))
     with pytest.raises(_Kill):
         Trainer(task, cfg, out, progress=False, hooks=[hook]).train()
+    lock.release()
     assert not (out / "checkpoints" / "last.pt").exists()
+    before = (out / "metrics.jsonl").read_text()
     said = []
     outcome = runs.resume(out, progress=False, results=False, say=said.append)
-    assert any("no checkpoint yet" in s for s in said)
+    assert any("no checkpoint yet" in s and "restarts/1" in s for s in said), said
     assert _same(_weights(base.model), _weights(outcome.model))
+    assert (out / "restarts" / "1" / "metrics.jsonl").read_text() == before  # the first attempt's records kept
+    assert [json.loads(s)["step"] for s in (out / "metrics.jsonl").read_text().splitlines()][-1] == 8
 
 
-def test_a_running_run_is_not_resumed(tmp_path):
-    spec, cfg = runs.resolve("obstacle", "demo", {"training": {"iterations": 3}}, sets=OBSTACLE)
-    out = runs.train(spec, cfg, tmp_path / "run", progress=False, results=False).run_dir
+def test_the_lock_decides_whether_a_run_is_running(tmp_path):
+    """On this machine a run is running while a process holds its lock: a live pid in a stale
+    status.json (a reused pid) does not keep a run from resuming; a held lock does, named."""
     from ginn.errors import GinnError
+    from ginn.train.lock import RunLock, lock_holder
     from ginn.train.rundir import write_status
 
-    write_status(out, "running", 2, 1.0)  # this very process: alive
-    with pytest.raises(GinnError, match="still running"):
-        runs.resume(out, iterations=5, progress=False)
-    shutil.rmtree(out / "checkpoints")
+    spec, cfg = runs.resolve("obstacle", "demo", {"training": {"iterations": 3}}, sets=OBSTACLE)
+    out = runs.train(spec, cfg, tmp_path / "run", progress=False, results=False).run_dir
+    assert lock_holder(out) is None
+    write_status(out, "running", 2, 1.0)  # this very (live) process, but it holds no lock
+    st = read_status(out)
+    assert not st.alive() and "no process holds its lock" in st.describe()
+    with RunLock(out):
+        assert lock_holder(out) == os.getpid()
+        assert read_status(out).alive() and "holds its lock" in read_status(out).describe()
+        with pytest.raises(GinnError, match=rf"another process writes this run \(pid {os.getpid()} on "):
+            runs.resume(out, iterations=5, progress=False)
+    assert runs.resume(out, iterations=5, progress=False, results=False).step == 5
+
+
+def _resume_in_fork(out: Path, barrier, codes, n: int) -> None:
+    with open(out.parent / f"err{n}", "w") as sys.stderr:
+        barrier.wait()
+        codes.put((n, main(["resume", str(out), "--quiet", "--no-results"])))
+
+
+def test_two_resumes_started_together_one_is_refused(tmp_path):
+    """Two `ginn resume` of one run started at the same moment: one continues it, the other is
+    refused with one line naming the holder, and metrics.jsonl holds every iteration once."""
+    import multiprocessing as mp
+
+    spec, cfg = runs.resolve("obstacle", "demo", {"training": {"iterations": 40, "checkpoint_every": 2}}, sets=OBSTACLE)
+
+    def stop(trainer, step, values):
+        if step == 1:
+            raise _Kill
+
+    with pytest.raises(_Kill):
+        runs.train(spec, cfg, tmp_path / "run", progress=False, results=False, hooks=[stop])
+    ctx = mp.get_context("fork")
+    barrier, codes = ctx.Barrier(2), ctx.Queue()
+    procs = [ctx.Process(target=_resume_in_fork, args=(tmp_path / "run", barrier, codes, n)) for n in (0, 1)]
+    for p in procs:
+        p.start()
+    for p in procs:
+        p.join(timeout=300)
+    result = dict(codes.get(timeout=5) for _ in procs)
+    assert sorted(result.values()) == [0, 2], result
+    loser = min(result, key=lambda n: -result[n])
+    err = (tmp_path / f"err{loser}").read_text().strip().splitlines()
+    assert len(err) == 1 and "another process writes this run (pid " in err[0], err
+    steps = [json.loads(s)["step"] for s in (tmp_path / "run" / "metrics.jsonl").read_text().splitlines()
+             if "event" not in json.loads(s)]
+    assert steps == list(range(40))
+    assert read_status(tmp_path / "run").status == "completed"
+
+
+def test_a_stale_heartbeat_is_not_running_where_the_lock_cannot_be_read():
+    from ginn.train.rundir import Status
+
+    now = time.time()
+    here = dict(status="running", pid=os.getpid(), host=socket.gethostname(), heartbeat_every=10.0)
+    assert Status(**here, heartbeat=now - 80).alive(now)  # within 3 x 10 + 60 s, pid alive
+    alive, why = Status(**here, heartbeat=now - 100).judge(now)
+    assert not alive and "stale after 90 s" in why and "another process" in why
+    assert not Status(**{**here, "pid": 999_999_999}, heartbeat=now).alive(now)
+    elsewhere = dict(here, host="elsewhere-" + socket.gethostname())
+    assert Status(**elsewhere, heartbeat=now - 80).alive(now) and not Status(**elsewhere, heartbeat=now - 100).alive(now)
+
+
+def test_a_completed_run_is_extended_not_retrained(tmp_path, capsys):
+    """`ginn resume` of a completed run says so and how to extend it; without its checkpoint it is
+    refused with the history left as it was."""
+    spec, cfg = runs.resolve("obstacle", "demo", {"training": {"iterations": 3}}, sets=OBSTACLE)
+    out = runs.train(spec, cfg, tmp_path / "run", progress=False, results=False).run_dir
+    assert main(["resume", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "complete at iteration 3" in err and "--iterations N` with N > 3" in err and err.count("\n") == 1
+    (out / "checkpoints" / "last.pt").unlink()
+    history = (out / "metrics.jsonl").read_text()
+    assert main(["resume", str(out), "--iterations", "5"]) == 2
+    err = capsys.readouterr().err
+    assert "missing" in err and "nothing to continue from" in err
+    assert (out / "metrics.jsonl").read_text() == history and read_status(out).status == "completed"
 
 
 @pytest.mark.slow

@@ -15,10 +15,12 @@ Kind-specific work (what to evaluate, export, draw or show) is the task's
 from __future__ import annotations
 
 import json
+import socket
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import torch
 import yaml
 from torch import Tensor, nn
 
@@ -28,12 +30,14 @@ from .problems import ProblemSpec, load_spec
 from .tasks import make_task
 from .train.checkpoint import load_checkpoint
 from .train.distributed import DistContext, on_main
+from .train.lock import RunLock
 from .train.rundir import (
+    Status,
     io_error,
     new_run_dir,
     read_config_dict,
     read_status,
-    truncate_metrics,
+    set_aside,
     write_run_files,
     write_status,
 )
@@ -42,7 +46,7 @@ from .train.trainer import Trainer
 
 __all__ = [
     "Run", "Outcome", "is_spec_file", "resolve", "train", "resume", "fit", "load_run",
-    "evaluate", "export", "plot",
+    "evaluate", "export", "plot", "check_device", "device_here",
 ]
 
 Say = Callable[[str], None]
@@ -92,6 +96,23 @@ class Outcome:
     model: nn.Module
     results: list[Path] = field(default_factory=list)
     reason: str = ""
+
+
+def device_here(device: str) -> str:
+    """``device`` where this machine has it, else ``cpu``: a run trained on a GPU opens for reading
+    on a machine without one."""
+    return "cpu" if device.startswith("cuda") and not torch.cuda.is_available() else device
+
+
+def check_device(device: str, where: str = "device") -> None:
+    """Raise a one-line :class:`ConfigError` naming ``where`` unless this machine has ``device``."""
+    if not device.startswith("cuda"):
+        return
+    if not torch.cuda.is_available():
+        raise ConfigError(f"{where} {device}: CUDA is not available on this machine")
+    index = int(device.partition(":")[2] or 0)
+    if index >= torch.cuda.device_count():
+        raise ConfigError(f"{where} {device}: this machine has {torch.cuda.device_count()} CUDA device(s)")
 
 
 def _spec_file(spec: ProblemSpec) -> Path | None:
@@ -173,19 +194,32 @@ def train(
     """
     if results is not None and results != cfg.output.results:
         cfg = with_overrides(cfg, {"output": {"results": results}})
+    if dist is None:
+        check_device(cfg.device)
     task = make_task(spec, dist.localize(cfg) if dist is not None else cfg)
-    run_dir = on_main(dist, lambda: new_run_dir(spec.name, out))
-    main = dist is None or dist.is_main
-    if main:
-        spec_path, spec_text = _spec_record(spec)
-        write_run_files(run_dir, cfg, spec_path, notes=spec.derived_notes(cfg), spec_text=spec_text)
-        if prepare is not None:
-            prepare(run_dir)
-    where = cfg.device if dist is None else f"{dist.world} x {dist.device} ({dist.backend})"
-    (say if main else _silent)(
-        f"training {spec.name}" + (f" (preset {cfg.preset})" if cfg.preset else "") + f" on {where}; run directory {run_dir}")
-    trainer = Trainer(task, task.cfg, run_dir, progress=progress, hooks=hooks, dist=dist)
-    return _finish(trainer, task, run_dir, cfg.output.results, say if main else _silent)
+    locks: list[RunLock] = []  # rank 0 writes, and holds the run's lock from its creation to the end
+
+    def create() -> Path:
+        run_dir, lock = new_run_dir(spec.name, out)
+        locks.append(lock)
+        return run_dir
+
+    run_dir = on_main(dist, create)
+    try:
+        main = dist is None or dist.is_main
+        if main:
+            spec_path, spec_text = _spec_record(spec)
+            write_run_files(run_dir, cfg, spec_path, notes=spec.derived_notes(cfg), spec_text=spec_text)
+            if prepare is not None:
+                prepare(run_dir)
+        where = cfg.device if dist is None else f"{dist.world} x {dist.device} ({dist.backend})"
+        (say if main else _silent)(
+            f"training {spec.name}" + (f" (preset {cfg.preset})" if cfg.preset else "") + f" on {where}; run directory {run_dir}")
+        trainer = Trainer(task, task.cfg, run_dir, progress=progress, hooks=hooks, dist=dist)
+        return _finish(trainer, task, run_dir, cfg.output.results, say if main else _silent)
+    finally:
+        for lock in locks:
+            lock.release()
 
 
 def _run_config(run_dir: Path, spec: ProblemSpec | None = None) -> tuple[ProblemSpec, RunConfig]:
@@ -222,28 +256,59 @@ def resume(
     results: bool | None = None,
     dist: DistContext | None = None,
     say: Say = _silent,
+    device: str | None = None,
 ) -> Outcome:
-    """Continue a run from its last checkpoint (up to ``iterations`` in total if given).
+    """Continue a run from its last checkpoint (up to ``iterations`` in total if given; on
+    ``device`` if given, else on the device it was trained on).
 
-    A run that died before its first checkpoint restarts from its saved config (and says so).
-    ``results`` None: as the run was started (``output.results`` of its config).
+    The run's lock is taken before anything is read (one line naming the holder if another process
+    writes the run). A completed run is continued only to a larger ``iterations``; a run that never
+    reached a checkpoint restarts from its saved config, its earlier ``metrics.jsonl`` and
+    ``status.json`` moved aside to ``restarts/<n>/`` (and says so). ``results`` None: as the run
+    was started (``output.results`` of its config).
 
     Raises:
-        GinnError: the run is still running, or ``iterations`` is not beyond its current step.
+        GinnError: another process writes the run (or, seen from another machine, its heartbeat is
+            fresh); the run is complete and ``iterations`` is not beyond it; ``iterations`` is not
+            beyond its current step; a completed run has lost its checkpoint.
     """
     run_dir = Path(run_dir)
-    def not_running():
+    read_config_dict(run_dir)  # one line if it is not a run directory
+    lock = RunLock(run_dir)
+
+    def claim() -> Status:
+        lock.acquire()
         state = read_status(run_dir)
-        if state.alive():
+        alive, why = state.judge()
+        if alive and state.host != socket.gethostname():  # on this machine the lock is the truth
             raise GinnError(f"{run_dir}: the run is still {state.describe()}; stop it before resuming")
+        if state.status == "completed" and (iterations is None or iterations <= state.step):
+            raise GinnError(f"{run_dir}: the run is complete at iteration {state.step}; "
+                            f"`ginn resume {run_dir} --iterations N` with N > {state.step} trains it further")
         return state
 
-    state = on_main(dist, not_running)  # decided once, on rank 0 (the others would see its new status)
-    if state.status == "running" and (dist is None or dist.is_main):
+    try:
+        state = on_main(dist, claim)  # decided once, on rank 0 (the others would see its new status)
+        return _resume_locked(run_dir, state, iterations, progress, results, dist, say, device)
+    finally:
+        lock.release()
+
+
+def _resume_locked(run_dir: Path, state: Status, iterations: int | None, progress: bool, results: bool | None,
+                   dist: DistContext | None, say: Say, device: str | None) -> Outcome:
+    main = dist is None or dist.is_main
+    if state.status == "running" and main:
         say(f"{run_dir} was {state.describe().split(';')[0]}")
     spec, cfg = _run_config(run_dir)
     if iterations is not None:
         cfg = with_overrides(cfg, {"training": {"iterations": iterations}})
+    if device is not None:
+        cfg = with_overrides(cfg, {"device": device})
+    elif dist is None and device_here(cfg.device) != cfg.device:
+        raise ConfigError(f"{run_dir}: the run trains on {cfg.device}, which this machine does not have; "
+                          f"`ginn resume {run_dir} --device cpu` continues it on the CPU")
+    if dist is None:
+        check_device(cfg.device, "--device")
     cfg = dist.localize(cfg) if dist is not None else cfg
     task = make_task(spec, cfg)
     trainer = Trainer(task, cfg, run_dir, progress=progress, dist=dist)
@@ -253,10 +318,14 @@ def resume(
             raise GinnError(f"--iterations {iterations}: the run is already at iteration {trainer.step}; "
                             "give a larger total")
         main_say(f"resuming {run_dir} at iteration {trainer.step} of {cfg.training.iterations}")
+    elif state.status == "completed":
+        raise GinnError(f"{run_dir}: the run completed {state.step} iterations but {trainer.checkpoint_path} is missing; "
+                        "there is nothing to continue from (its files are left as they are)")
     else:
         if trainer.is_main:
-            truncate_metrics(run_dir / "metrics.jsonl", 0)
-        main_say(f"{run_dir} has no checkpoint yet: restarting it from its config.yaml")
+            kept = set_aside(run_dir, ("metrics.jsonl", "status.json"))
+            main_say(f"{run_dir} has no checkpoint yet: restarting it from its config.yaml"
+                     + (f" (its earlier records moved to {kept})" if kept else ""))
     return _finish(trainer, task, run_dir, cfg.output.results if results is None else results, main_say)
 
 
@@ -278,10 +347,14 @@ class Run:
 
 
 def load_run(run_dir: str | Path, device: str | None = None) -> Run:
-    """Rebuild the task and model of a run directory and load the last checkpoint's weights."""
+    """Rebuild the task and model of a run directory and load the last checkpoint's weights, on
+    ``device`` (default: the run's own where this machine has it, else the CPU)."""
     run_dir = Path(run_dir)
     spec, cfg = _run_config(run_dir)
-    if device is not None and device != cfg.device:
+    if device is not None:
+        check_device(device, "--device")
+    device = device or device_here(cfg.device)
+    if device != cfg.device:
         cfg = with_overrides(cfg, {"device": device})
     task = make_task(spec, cfg)
     model = task.build_model().to(device=cfg.device, dtype=cfg.torch_dtype)

@@ -9,8 +9,6 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
-import torch
-
 from .. import runs, sweep
 from ..errors import ConfigError, GinnError
 from ..eval.shapes import format_comparison_table
@@ -19,16 +17,6 @@ from ..train.distributed import init_distributed, shutdown
 from ..train.rundir import read_config_dict, read_status
 
 __all__ = ["COMMANDS"]
-
-
-def _check_device(device: str | None) -> None:
-    if device is None or device == "cpu":
-        return
-    if device.startswith("cuda"):
-        if not torch.cuda.is_available():
-            raise ConfigError(f"--device {device}: CUDA is not available on this machine")
-        return
-    raise ConfigError(f"--device {device!r}: expected cpu or cuda[:N]")
 
 
 def _printer(quiet: bool) -> Callable[[str], None]:
@@ -46,7 +34,7 @@ def _exit_status(outcome: runs.Outcome, main: bool) -> int:
 
 
 def cmd_train(args: argparse.Namespace) -> int:
-    _check_device(args.device)
+    runs.check_device(args.device or "cpu", "--device")
     over: dict = {}
     if args.seed is not None:
         over["seed"] = args.seed
@@ -67,10 +55,10 @@ def cmd_train(args: argparse.Namespace) -> int:
 
 def cmd_resume(args: argparse.Namespace) -> int:
     raw = read_config_dict(Path(args.run_dir))
-    dist = init_distributed(str(raw.get("device", "cpu")))  # None unless started by torchrun
+    dist = init_distributed(args.device or str(raw.get("device", "cpu")))  # None unless started by torchrun
     try:
         main = dist is None or dist.is_main
-        outcome = runs.resume(args.run_dir, args.iterations, progress=not args.quiet,
+        outcome = runs.resume(args.run_dir, args.iterations, progress=not args.quiet, device=args.device,
                               results=False if args.no_results else None, dist=dist, say=_printer(args.quiet or not main))
         return _exit_status(outcome, main)
     finally:
@@ -107,7 +95,7 @@ def cmd_problems(args: argparse.Namespace) -> int:
 
 
 def cmd_eval(args: argparse.Namespace) -> int:
-    _check_device(args.device)
+    runs.check_device(args.device or "cpu", "--device")
     results = []
     for rd in args.run_dirs:
         _note_unfinished(rd)

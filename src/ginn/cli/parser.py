@@ -40,6 +40,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--iterations", type=count(1), help="train up to this many iterations in total")
     r.add_argument("--quiet", action="store_true", help="no progress bar and no messages")
     r.add_argument("--no-results", action="store_true", help="skip writing shapes and figures at the end")
+    r.add_argument("--device", type=device, help="cpu or cuda[:N] (default: the run's)")
 
     st = sub.add_parser("status", help="say whether runs are running, completed, interrupted or failed")
     st.add_argument("run_dirs", nargs="+")

@@ -45,7 +45,7 @@ class RunConfig(Strict):
     problem: str = Field("", description="built-in problem name or the spec file's path")
     preset: str | None = Field(None, description="the problem preset the run started from")
     seed: int = Field(0, description="seed of the initialisation and of every sample")
-    device: str = Field("cpu", description="cpu or cuda[:N]")
+    device: str = Field("cpu", pattern=r"^(cpu|cuda(:\d+)?)$", description="cpu, cuda or cuda:N")
     model: ModelConfig = ModelConfig()
     latents: LatentConfig = LatentConfig()
     losses: LossesConfig = LossesConfig()

@@ -8,6 +8,9 @@ Layout of ``runs/<problem>-<timestamp>/`` (or ``--out DIR``)::
     metrics.jsonl       one JSON line per logged iteration: ``step`` is the 0-based index of the
                         iteration whose loss terms the line holds; events (rollback, interrupted)
     checkpoints/last.pt the latest checkpoint (atomic; safe to load)
+    .ginn-lock          the writer's lock (ginn.train.lock), held by the process that trains it
+    restarts/<n>/       metrics.jsonl and status.json of an attempt that ended before its first
+                        checkpoint, set aside when the run was restarted from its config
     status.json         running | interrupted | completed | failed | pruned; ``step`` is the number
                         of completed iterations; a running process's pid, host and heartbeat
     ... result files written by the task at the end (shapes, meshes, figures)
@@ -40,6 +43,7 @@ from ..config import RunConfig, config_to_dict
 from ..errors import ConfigError, GinnError
 from ..version import __version__
 from ..yamlfile import load_yaml
+from .lock import LOCK_NAME, RunLock, RunLocked, lock_holder
 
 
 def slug(name: str) -> str:
@@ -57,11 +61,13 @@ def io_error(e: OSError, path: str | Path, doing: str = "write") -> GinnError:
     return GinnError(f"{path}: cannot {doing} ({e.strerror or type(e).__name__})")
 
 
-def new_run_dir(problem_name: str, out: str | Path | None = None, root: str | Path = "runs") -> Path:
-    """A fresh directory ``root/<problem>-<timestamp>`` (or ``out``, which must be empty or new).
+def new_run_dir(problem_name: str, out: str | Path | None = None, root: str | Path = "runs") -> tuple[Path, RunLock]:
+    """A fresh directory ``root/<problem>-<timestamp>`` (or ``out``, which must be empty or new),
+    with its writer's lock (:class:`~ginn.train.lock.RunLock`) taken: the caller holds it for the
+    whole run and releases it.
 
-    The directory is claimed atomically (an exclusive ``mkdir``, or an exclusive marker file in an
-    existing empty ``out``), so two processes never share one.
+    The directory is made with an exclusive ``mkdir`` or, for an existing ``out``, locked before it
+    is checked to be empty, so two processes never share one.
     """
     try:
         if out is not None:
@@ -69,11 +75,14 @@ def new_run_dir(problem_name: str, out: str | Path | None = None, root: str | Pa
             if p.exists() and not p.is_dir():
                 raise ConfigError(f"--out {p}: exists and is not a directory")
             p.mkdir(parents=True, exist_ok=True)
-            if any(q.name != _CLAIM for q in p.iterdir()):
+            try:
+                lock = RunLock(p).acquire()
+            except RunLocked:
+                raise ConfigError(f"--out {p}: another process writes a run there ({RunLock(p).holder()})") from None
+            if any(q.name != LOCK_NAME for q in p.iterdir()):
+                lock.release()
                 raise ConfigError(f"--out {p}: directory exists and is not empty (use `ginn resume {p}` to continue it)")
-            if not _claim(p / _CLAIM):
-                raise ConfigError(f"--out {p}: another process is starting a run there")
-            return p
+            return p, lock
         stamp = _dt.datetime.now().strftime("%Y%m%d-%H%M%S")
         base = Path(root) / f"{slug(problem_name)}-{stamp}"
         base.parent.mkdir(parents=True, exist_ok=True)
@@ -83,34 +92,10 @@ def new_run_dir(problem_name: str, out: str | Path | None = None, root: str | Pa
                 p.mkdir()
             except FileExistsError:
                 continue
-            _claim(p / _CLAIM)
-            return p
+            return p, RunLock(p).acquire()
         raise GinnError(f"{root}: could not create a new run directory for {problem_name}")
     except OSError as e:
         raise io_error(e, out if out is not None else root, "create a run directory in") from None
-
-
-#: marker of a claimed run directory (removed once config.yaml is written)
-_CLAIM = ".ginn-claim"
-
-
-def _claim(marker: Path) -> bool:
-    """Create ``marker`` exclusively with this process's pid; a marker left by a process that is
-    gone is taken over. Returns False when a live process holds it."""
-    for _ in range(2):
-        try:
-            with marker.open("x") as fh:
-                fh.write(str(os.getpid()))
-            return True
-        except FileExistsError:
-            try:
-                pid = int(marker.read_text().strip() or 0)
-            except (OSError, ValueError):
-                pid = 0
-            if pid > 0 and _pid_alive(pid):
-                return False
-            marker.unlink(missing_ok=True)
-    return False
 
 
 def _pid_alive(pid: int) -> bool:
@@ -158,7 +143,6 @@ def write_run_files(run_dir: Path, cfg: RunConfig, spec_path: Path | None, notes
         elif spec_path is not None:
             shutil.copyfile(spec_path, run_dir / "problem.yaml")
         (run_dir / "env.json").write_text(json.dumps(environment(cfg), indent=2))
-        (run_dir / _CLAIM).unlink(missing_ok=True)
     except OSError as e:
         raise io_error(e, e.filename or target) from None
 
@@ -186,6 +170,30 @@ def read_config_dict(run_dir: Path) -> dict:
     return data
 
 
+def set_aside(run_dir: Path, names: tuple[str, ...]) -> Path | None:
+    """Move those of the files ``names`` of ``run_dir`` that exist into a new folder
+    ``run_dir/restarts/<n>/`` (n = 1, 2, ...), so that a restart never overwrites them; returns
+    the folder (None: there was nothing to move)."""
+    found = [run_dir / n for n in names if (run_dir / n).exists()]
+    if not found:
+        return None
+    try:
+        (run_dir / "restarts").mkdir(exist_ok=True)
+        n = 1
+        while True:
+            dest = run_dir / "restarts" / str(n)
+            try:
+                dest.mkdir()
+                break
+            except FileExistsError:
+                n += 1
+        for f in found:
+            os.replace(f, dest / f.name)
+    except OSError as e:
+        raise io_error(e, e.filename or run_dir) from None
+    return dest
+
+
 # --- status ---------------------------------------------------------------------------------------
 
 
@@ -201,6 +209,7 @@ class Status:
         pid, host: the training process while running.
         heartbeat: wall-clock time (seconds since the epoch) of the last update while running.
         heartbeat_every: the longest expected interval between updates (seconds).
+        run_dir: the run directory it was read from (not in the file).
     """
 
     status: str
@@ -211,25 +220,49 @@ class Status:
     host: str = ""
     heartbeat: float | None = None
     heartbeat_every: float = 60.0
+    run_dir: Path | None = None
+
+    @property
+    def stale_after(self) -> float:
+        """Seconds after which a heartbeat is stale: three intervals and a minute."""
+        return 3 * self.heartbeat_every + 60
+
+    def judge(self, now: float | None = None) -> tuple[bool, str]:
+        """Whether a ``running`` run's process is still there, and why it is judged so.
+
+        On the machine that runs it: whether a process holds the run's lock (``/proc/locks``, which
+        the kernel keeps true); where that cannot be read, whether its pid exists and its heartbeat
+        is fresh (:attr:`stale_after`; a pid alone may have been reused). From another machine:
+        whether the heartbeat is fresh."""
+        if self.status != "running":
+            return False, ""
+        now = time.time() if now is None else now
+        age = None if self.heartbeat is None else now - self.heartbeat
+        fresh = age is not None and age <= self.stale_after
+        beat = "no heartbeat" if age is None else f"its last heartbeat {age:.0f} s ago (stale after {self.stale_after:.0f} s)"
+        if self.host == socket.gethostname():
+            holder = lock_holder(self.run_dir) if self.run_dir is not None else False
+            if holder is not False:
+                return (True, f"pid {holder} holds its lock") if holder else (False, "no process holds its lock")
+            if self.pid is None or not _pid_alive(self.pid):
+                return False, f"pid {self.pid} is gone"
+            return (True, f"pid {self.pid} is alive, {beat}") if fresh else (False, f"{beat}; pid {self.pid} is another process")
+        return fresh, f"{beat}; judged by the heartbeat, the process runs on {self.host or 'another machine'}"
 
     def alive(self, now: float | None = None) -> bool:
-        """Whether a ``running`` run's process is still there: on this host, whether its pid
-        exists; elsewhere, whether the heartbeat is at most three intervals (and a minute) old."""
-        if self.status != "running":
-            return False
-        if self.host == socket.gethostname() and self.pid is not None:
-            return _pid_alive(self.pid)
-        now = time.time() if now is None else now
-        return self.heartbeat is not None and now - self.heartbeat <= 3 * self.heartbeat_every + 60
+        """Whether a ``running`` run's process is still there (:meth:`judge`)."""
+        return self.judge(now)[0]
 
     def describe(self) -> str:
-        """One line: ``completed at iteration 500 (41.2 s)``, ``running at iteration 120 (pid 4242)``,
-        ``not running (last seen 2026-12-01 10:15:02 at iteration 180)``, ``failed at ...: reason``."""
+        """One line: ``completed at iteration 500 (41.2 s)``, ``running at iteration 120 (pid 4242 on
+        host: pid 4242 holds its lock)``, ``not running (last seen 2026-12-01 10:15:02 at iteration
+        180: no process holds its lock; ...)``, ``failed at ...: reason``."""
         if self.status == "running":
-            if self.alive():
-                return f"running at iteration {self.step} (pid {self.pid} on {self.host})"
+            alive, why = self.judge()
+            if alive:
+                return f"running at iteration {self.step} (pid {self.pid} on {self.host}: {why})"
             seen = _dt.datetime.fromtimestamp(self.heartbeat).isoformat(sep=" ", timespec="seconds") if self.heartbeat else "never"
-            return f"not running (last seen {seen} at iteration {self.step}; `ginn resume` continues it)"
+            return f"not running (last seen {seen} at iteration {self.step}: {why}; `ginn resume` continues it)"
         text = f"{self.status} at iteration {self.step} ({self.seconds:.1f} s of training)"
         return text + (f": {self.reason}" if self.reason else "")
 
@@ -259,10 +292,10 @@ def read_status(run_dir: Path) -> Status:
     p = Path(run_dir) / "status.json"
     try:
         data = json.loads(p.read_text())
-        fields = {k: data[k] for k in Status.__dataclass_fields__ if k in data}
-        return Status(**fields)
+        fields = {k: data[k] for k in Status.__dataclass_fields__ if k in data and k != "run_dir"}
+        return Status(**fields, run_dir=Path(run_dir))
     except (OSError, ValueError, TypeError):
-        return Status("unknown")
+        return Status("unknown", run_dir=Path(run_dir))
 
 
 # --- metrics.jsonl --------------------------------------------------------------------------------
