@@ -21,12 +21,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import torch
-import yaml
 from torch import Tensor, nn
 
 from .config import RunConfig, build_config, deep_merge, parse_set, with_overrides
 from .errors import ConfigError, GinnError
 from .problems import ProblemSpec, load_spec
+from .problems.record import INPUTS, record_spec
 from .tasks import make_task
 from .train.checkpoint import load_checkpoint
 from .train.distributed import DistContext, on_main
@@ -115,24 +115,6 @@ def check_device(device: str, where: str = "device") -> None:
         raise ConfigError(f"{where} {device}: this machine has {torch.cuda.device_count()} CUDA device(s)")
 
 
-def _spec_file(spec: ProblemSpec) -> Path | None:
-    return Path(spec.source) if Path(spec.source).is_file() else None
-
-
-def _spec_record(spec: ProblemSpec) -> tuple[Path | None, str | None]:
-    """What ``problem.yaml`` of a run holds: the spec's file (comments and all) when the spec is
-    what that file says, else the spec itself as YAML (a spec changed in memory, e.g. a topology
-    target added by ``benchmarks/suite.py``; its mesh paths are absolute)."""
-    src = _spec_file(spec)
-    if src is not None:
-        try:
-            if load_spec(src).model_dump(mode="json") == spec.model_dump(mode="json"):
-                return src, None
-        except GinnError:
-            pass
-    return None, yaml.safe_dump(spec.model_dump(mode="json", exclude_none=True, by_alias=True), sort_keys=False)
-
-
 def _finish(trainer: Trainer, task: Task, run_dir: Path, results: bool, say: Say) -> Outcome:
     """Train to the end (the trainer keeps ``status.json`` true) and write the result files."""
     try:
@@ -208,8 +190,9 @@ def train(
     try:
         main = dist is None or dist.is_main
         if main:
-            spec_path, spec_text = _spec_record(spec)
-            write_run_files(run_dir, cfg, spec_path, notes=spec.derived_notes(cfg), spec_text=spec_text)
+            rec = record_spec(spec)
+            write_run_files(run_dir, cfg, rec.source, notes=spec.derived_notes(cfg), spec_text=rec.text,
+                            inputs={f"{INPUTS}/{name}": src for name, src in rec.inputs.items()})
             if prepare is not None:
                 prepare(run_dir)
         where = cfg.device if dist is None else f"{dist.world} x {dist.device} ({dist.backend})"
@@ -237,15 +220,12 @@ def _run_config(run_dir: Path, spec: ProblemSpec | None = None) -> tuple[Problem
 
 
 def _recorded_spec(run_dir: Path, original: str) -> ProblemSpec:
-    """The spec a run trained: its copy ``problem.yaml``; the original when the copy names files
-    relative to the original spec's folder (or when there is no copy)."""
+    """The spec a run trained, from the run's own copy ``problem.yaml`` (and the files of
+    ``inputs/`` it names) only: a run never reads its problem from outside its directory."""
     copy = run_dir / "problem.yaml"
     if not copy.is_file():
-        return load_spec(original)
-    try:
-        return load_spec(copy)
-    except GinnError:
-        return load_spec(original)
+        raise GinnError(f"{copy}: missing; a run rebuilds its problem ({original or 'unknown'}) from its own copy only")
+    return load_spec(copy)
 
 
 def resume(

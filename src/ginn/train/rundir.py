@@ -3,7 +3,9 @@
 Layout of ``runs/<problem>-<timestamp>/`` (or ``--out DIR``)::
 
     config.yaml         the resolved RunConfig (every default filled in)
-    problem.yaml        a copy of the problem spec that was trained
+    problem.yaml        a copy of the problem spec that was trained (the run reads its problem
+                        from this copy only)
+    inputs/             copies of the files the problem reads (meshes), which problem.yaml names
     env.json            package versions, device, seed, command line, start time
     metrics.jsonl       one JSON line per logged iteration: ``step`` is the 0-based index of the
                         iteration whose loss terms the line holds; events (rollback, interrupted)
@@ -128,10 +130,11 @@ def environment(cfg: RunConfig) -> dict:
 
 
 def write_run_files(run_dir: Path, cfg: RunConfig, spec_path: Path | None, notes: list[str] | None = None,
-                    spec_text: str | None = None) -> None:
+                    spec_text: str | None = None, inputs: dict[str, Path] | None = None) -> None:
     """``config.yaml`` (headed by ``notes`` as comments: the settings derived from the problem's
     geometry and why), ``problem.yaml`` (a copy of the spec file ``spec_path``, or ``spec_text``
-    when given) and ``env.json``."""
+    when given), the files the problem reads (``inputs``: ``{path in the run: file to copy}``)
+    and ``env.json``."""
     target = run_dir / "config.yaml"
     head = ""
     if notes:
@@ -142,6 +145,9 @@ def write_run_files(run_dir: Path, cfg: RunConfig, spec_path: Path | None, notes
             (run_dir / "problem.yaml").write_text(spec_text)
         elif spec_path is not None:
             shutil.copyfile(spec_path, run_dir / "problem.yaml")
+        for rel, src in (inputs or {}).items():
+            (run_dir / rel).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(src, run_dir / rel)
         (run_dir / "env.json").write_text(json.dumps(environment(cfg), indent=2))
     except OSError as e:
         raise io_error(e, e.filename or target) from None
