@@ -115,6 +115,11 @@ CASES = {
         "name: a\ngeometry: {dim: 2, domain: {lo: [-1, -1], hi: [1, 1]}, interfaces: [{type: circle, center: [0, 0], radius: 0.5}]}\nsymmetry: {mirrors: [{point: [0.2, 0], normal: [1, 0]}]}\n")
         and ["train", t / "s.yaml"], "spec field 'symmetry': the interfaces are not symmetric under mirror 0"),
     "export --latent nan": (lambda r, t: ["export", r, "--latent", "nan"], "--latent"),
+    "export --latent beyond float32": (lambda r, t: ["export", r, "--latent", "1e308", "--out", t / "x"],
+                                       "--latent: latent values must be finite in the model's float32"),
+    "params.kind of another kind": (lambda r, t: ["train", "obstacle", "--set", "params.kind=mirror"],
+                                    "config field 'params.kind': 'mirror' is not the kind of problem obstacle"),
+    "view --out onto the run's config": (lambda r, t: ["view", r, "--out", r / "config.yaml"], "one of the run's own files"),
     "2D export --format stl": (lambda r, t: ["export", r, "--format", "stl"], "--format stl"),
     "--iterations 0": (lambda r, t: ["train", "obstacle", "--iterations", "0"], "--iterations"),
     "device through --set": (lambda r, t: ["train", "obstacle", "--set", "device=tpu", "--out", str(t / "o")],
@@ -122,6 +127,15 @@ CASES = {
     "resume a completed run below its step": (lambda r, t: ["resume", _copy(r, t / "r"), "--iterations", "3"],
                                               "complete at iteration 6"),
     "0-byte checkpoint": (lambda r, t: _empty_ckpt(_copy(r, t / "r")), "empty (0 bytes)"),
+    "checkpoint of another layout": (lambda r, t: _saved_ckpt(_copy(r, t / "r"), {}, "resume"), "no model weights"),
+    "checkpoint with a string step": (lambda r, t: _saved_ckpt(_copy(r, t / "r"), "step", "export"), "its step is '6'"),
+    "checkpoint of another model size": (lambda r, t: _saved_ckpt(_copy(r, t / "r"), "shapes", "eval"),
+                                         "does not fit the model of the run's config.yaml"),
+    "config.yaml edited to another model": (lambda r, t: _edit_config(_copy(r, t / "r"), "hidden", [32, 32]) and ["resume", t / "r", "--iterations", "9"],
+                                            "does not fit the model"),
+    "negative seed": (lambda r, t: ["train", "obstacle", "--seed", "-1"], "config field 'seed': must be >= 0"),
+    "YAML nested 400 deep": (lambda r, t: (t / "d.yaml").write_text("name: " + "[" * 400 + "]" * 400 + "\n")
+                             and ["train", t / "d.yaml"], "nested more than 64 levels deep"),
     "random-bytes checkpoint": (lambda r, t: _random_ckpt(_copy(r, t / "r")), "not a torch checkpoint"),
     "corrupt config.yaml": (lambda r, t: _corrupt_config(_copy(r, t / "r")), "config.yaml: YAML syntax error"),
     "invalid config.yaml": (lambda r, t: _invalid_config(_copy(r, t / "r")), "config.yaml: config field 'training.lr'"),
@@ -145,6 +159,31 @@ def _running(run: Path) -> list:
 def _empty_ckpt(run: Path) -> list:
     (run / "checkpoints" / "last.pt").write_bytes(b"")
     return ["eval", run]
+
+
+def _saved_ckpt(run: Path, damage, command: str) -> list:
+    """The run's checkpoint loaded, damaged and saved again (safe to load; the wrong layout)."""
+    import torch
+
+    path = run / "checkpoints" / "last.pt"
+    state = torch.load(path, weights_only=True)
+    if damage == "step":
+        state["step"] = str(state["step"])
+    elif damage == "shapes":
+        state["model"] = {k: torch.zeros(*(n + 1 for n in v.shape)) for k, v in state["model"].items()}
+    else:
+        state = damage
+    torch.save(state, path)
+    return [command, run] + (["--iterations", "9"] if command == "resume" else [])
+
+
+def _edit_config(run: Path, key: str, value) -> Path:
+    import yaml
+
+    cfg = yaml.safe_load((run / "config.yaml").read_text())
+    cfg["model"][key] = value
+    (run / "config.yaml").write_text(yaml.safe_dump(cfg, sort_keys=False))
+    return run
 
 
 def _random_ckpt(run: Path) -> list:
@@ -311,3 +350,15 @@ def test_a_gpu_run_opens_on_a_cpu_machine(run_dir, tmp_path, capsys):
     assert main(["resume", str(r), "--iterations", "8", "--device", "cpu", "--quiet", "--no-results"]) == 0
     assert runs.load_run(r).step == 8
     assert main(["eval", str(r), "--device", "cuda"]) == 2 and "CUDA is not available" in capsys.readouterr().err
+
+
+def test_bytes_that_are_not_utf8_in_metrics_jsonl_cost_one_line(tmp_path):
+    from ginn.train.rundir import read_metrics, truncate_metrics
+
+    log = tmp_path / "metrics.jsonl"
+    log.write_bytes(b'{"step": 0, "total": 1.0}\n\xff\xfe\x00garbage\n{"step": 1, "total": 0.5}\n')
+    with pytest.warns(UserWarning, match=r"metrics.jsonl:2: skipped"):
+        assert [r["step"] for r in read_metrics(log)] == [0, 1]
+    with pytest.warns(UserWarning, match="line 2"):
+        assert truncate_metrics(log, 1) == 2  # the damaged line and iteration 1
+    assert log.read_text() == '{"step": 0, "total": 1.0}\n'

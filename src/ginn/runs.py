@@ -28,10 +28,11 @@ from .errors import ConfigError, GinnError
 from .problems import ProblemSpec, load_spec
 from .problems.record import INPUTS, record_spec
 from .tasks import make_task
-from .train.checkpoint import load_checkpoint
+from .train.checkpoint import load_checkpoint, load_weights
 from .train.distributed import DistContext, on_main
 from .train.lock import RunLock
 from .train.rundir import (
+    RUN_RECORDS,
     Status,
     io_error,
     new_run_dir,
@@ -71,7 +72,10 @@ def resolve(problem: str | Path, preset: str | None = None, *overrides: dict,
     """
     spec = load_spec(problem)
     head = {"problem": str(Path(problem).resolve()) if is_spec_file(problem) else spec.name}
-    return spec, spec.config(preset, head, *overrides, parse_set(sets or []))
+    cfg = spec.config(preset, head, *overrides, parse_set(sets or []))
+    if cfg.params.kind != spec.kind:
+        raise ConfigError(f"config field 'params.kind': {cfg.params.kind!r} is not the kind of problem {spec.name} ({spec.kind!r})")
+    return spec, cfg
 
 
 @dataclass
@@ -339,7 +343,7 @@ def load_run(run_dir: str | Path, device: str | None = None) -> Run:
     task = make_task(spec, cfg)
     model = task.build_model().to(device=cfg.device, dtype=cfg.torch_dtype)
     ck = load_checkpoint(run_dir / "checkpoints" / "last.pt", map_location=cfg.device)
-    model.load_state_dict(ck["model"])
+    load_weights(model, ck, run_dir / "checkpoints" / "last.pt")
     task.load_state_dict(ck.get("task", {}))
     model.eval()
     return Run(run_dir, cfg, spec, task, model, int(ck["step"]))
@@ -413,6 +417,8 @@ def view(run_dir: str | Path, out: str | Path | None = None, steps: int = 64) ->
                           f"(`ginn resume {run_dir}` finishes it)")
     if steps < 1:
         raise ConfigError(f"--steps must be at least 1, got {steps}")
+    if out is not None and Path(out).resolve().parent == run_dir.resolve() and Path(out).name in RUN_RECORDS:
+        raise ConfigError(f"--out {out}: is one of the run's own files; choose another name")
     run = load_run(run_dir)
     path = Path(out) if out is not None else run.path / "figures" / "explorer.html"
     return run.task.results.view(run.model, path, steps=steps, title=f"{run.spec.name}: {run.path.name}")

@@ -44,11 +44,14 @@ def load_yaml(text: str, source: str = "<string>") -> Any:
     """Parse YAML ``text`` (from ``source``, for messages).
 
     Raises:
-        ConfigError: one line, ``<source>: YAML syntax error at line L, column C: <problem>`` or
-            ``<source>: duplicate key 'k' at line L (first at line M)``.
+        ConfigError: one line, ``<source>: YAML syntax error at line L, column C: <problem>``,
+            ``<source>: duplicate key 'k' at line L (first at line M)`` or ``<source>: nested more
+            than 64 levels deep``.
     """
     try:
-        return yaml.load(text, Loader=_StrictLoader)  # noqa: S506 - a SafeLoader subclass
+        data = yaml.load(text, Loader=_StrictLoader)  # noqa: S506 - a SafeLoader subclass
+    except RecursionError:
+        raise ConfigError(f"{source}: nested more than {MAX_DEPTH} levels deep") from None
     except _DuplicateKey as e:
         raise ConfigError(f"{source}: {e}") from None
     except yaml.YAMLError as e:
@@ -56,3 +59,28 @@ def load_yaml(text: str, source: str = "<string>") -> Any:
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
         problem = getattr(e, "problem", None) or type(e).__name__
         raise ConfigError(f"{source}: YAML syntax error{where}: {problem}") from None
+    if _depth(data) > MAX_DEPTH:
+        raise ConfigError(f"{source}: nested more than {MAX_DEPTH} levels deep")
+    return data
+
+
+#: the deepest nesting of mappings and lists accepted (a spec or config needs a handful; CSG trees
+#: a few dozen)
+MAX_DEPTH = 64
+
+
+def _depth(data: Any) -> int:
+    """The nesting depth of mappings and lists in ``data`` (iterative: no recursion limit)."""
+    deepest, stack = 0, [(data, 0)]
+    while stack:
+        node, d = stack.pop()
+        if isinstance(node, dict):
+            stack.extend((v, d + 1) for v in node.values())
+        elif isinstance(node, list):
+            stack.extend((v, d + 1) for v in node)
+        else:
+            continue
+        deepest = max(deepest, d + 1)
+        if deepest > MAX_DEPTH:
+            break
+    return deepest

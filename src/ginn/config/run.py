@@ -44,7 +44,7 @@ class RunConfig(Strict):
 
     problem: str = Field("", description="built-in problem name or the spec file's path")
     preset: str | None = Field(None, description="the problem preset the run started from")
-    seed: int = Field(0, description="seed of the initialisation and of every sample")
+    seed: int = Field(0, ge=0, lt=2**63, description="seed of the initialisation and of every sample (0 <= seed < 2^63)")
     device: str = Field("cpu", pattern=r"^(cpu|cuda(:\d+)?)$", description="cpu, cuda or cuda:N")
     model: ModelConfig = ModelConfig()
     latents: LatentConfig = LatentConfig()

@@ -93,7 +93,22 @@ def load_checkpoint(path: str | Path, map_location: str | torch.device = "cpu") 
         raise CheckpointError(f"cannot read checkpoint {path}: {_first_line(e)}") from None
     if not isinstance(state, dict):
         raise CheckpointError(f"checkpoint {path} is not a ginn checkpoint (not a mapping)")
+    model, step = state.get("model"), state.get("step")
+    if not isinstance(model, dict) or not all(isinstance(v, torch.Tensor) for v in model.values()):
+        raise CheckpointError(f"checkpoint {path} is not a ginn checkpoint (no model weights)")
+    if isinstance(step, bool) or not isinstance(step, int) or step < 0:
+        raise CheckpointError(f"checkpoint {path} is not a ginn checkpoint (its step is {step!r}, not a count)")
     return state
+
+
+def load_weights(model: torch.nn.Module, state: dict[str, Any], path: str | Path) -> None:
+    """``model.load_state_dict(state["model"])`` with a one-line :class:`CheckpointError` where the
+    weights do not fit the model (``config.yaml`` edited to another model, say)."""
+    try:
+        model.load_state_dict(state["model"])
+    except RuntimeError as e:
+        detail = next((line.strip() for line in str(e).splitlines()[1:] if line.strip()), _first_line(e))
+        raise CheckpointError(f"checkpoint {path} does not fit the model of the run's config.yaml ({detail[:200]})") from None
 
 
 def _is_pickle(path: Path) -> bool:

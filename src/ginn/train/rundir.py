@@ -47,6 +47,9 @@ from ..version import __version__
 from ..yamlfile import load_yaml
 from .lock import LOCK_NAME, RunLock, RunLocked, lock_holder
 
+#: the files a run directory keeps about itself (a command that writes elsewhere never replaces them)
+RUN_RECORDS = ("config.yaml", "problem.yaml", "env.json", "metrics.jsonl", "status.json", "metrics.json", LOCK_NAME)
+
 
 def slug(name: str) -> str:
     """``name`` made safe for a directory name (letters, digits, ``-`` and ``_``; others become ``-``)."""
@@ -166,7 +169,7 @@ def read_config_dict(run_dir: Path) -> dict:
     if not p.is_file():
         raise GinnError(f"{run_dir} is not a ginn run directory (no config.yaml)")
     try:
-        data = load_yaml(p.read_text(), str(p))
+        data = load_yaml(_text(p), str(p))
     except OSError as e:
         raise io_error(e, p, "read") from None
     except ConfigError as e:
@@ -353,6 +356,12 @@ class RunRecord:
             pass
 
 
+def _text(path: Path) -> str:
+    """A run file's text; bytes that are not UTF-8 (a damaged file) read as U+FFFD, so that the line
+    that holds them is the one refused, not the whole file."""
+    return Path(path).read_bytes().decode("utf-8", errors="replace")
+
+
 def metrics_lines(text: str) -> list[tuple[int, str, dict | None]]:
     """``(line number, line, record)`` of every non-empty line of a ``metrics.jsonl``'s text; the
     record is None for a line that is not a JSON object (a partial last line, say)."""
@@ -371,7 +380,7 @@ def metrics_lines(text: str) -> list[tuple[int, str, dict | None]]:
 def read_metrics(path: Path) -> list[dict]:
     """The records of a ``metrics.jsonl``; a line that is not a JSON object is skipped with a warning."""
     try:
-        text = Path(path).read_text()
+        text = _text(path)
     except OSError as e:
         raise io_error(e, path, "read") from None
     out = []
@@ -391,7 +400,7 @@ def truncate_metrics(path: Path, step: int) -> int:
     if not path.is_file():
         return 0
     try:
-        text = path.read_text()
+        text = _text(path)
     except OSError as e:
         raise io_error(e, path, "read") from None
     keep, dropped = [], 0

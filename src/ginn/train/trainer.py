@@ -38,7 +38,7 @@ from ..config import DTYPES, LossTerm, RunConfig, TrainingConfig
 from ..errors import ConfigError, GinnError
 from .balancing import make_balancer
 from .callbacks import Callback, Hook, StopRun, standard_callbacks
-from .checkpoint import load_checkpoint, rng_state, save_checkpoint, set_rng_state
+from .checkpoint import CheckpointError, load_checkpoint, load_weights, rng_state, save_checkpoint, set_rng_state
 from .distributed import DistContext
 from .rundir import RunRecord, io_error, truncate_metrics
 from .task import Task
@@ -188,7 +188,7 @@ class Trainer:
         return state
 
     def load_state_dict(self, state: dict) -> None:
-        self.model.load_state_dict(state["model"])
+        load_weights(self.model, state, self.checkpoint_path)
         self.optimizer.load_state_dict(state["optimizer"])
         self.scheduler.load_state_dict(state["scheduler"])
         self.balancer.load_state_dict(state["balancer"])
@@ -225,7 +225,10 @@ class Trainer:
         p = self.checkpoint_path
         if p is None or not p.exists():
             return False
-        self.load_state_dict(load_checkpoint(p, map_location=self.device))
+        try:
+            self.load_state_dict(load_checkpoint(p, map_location=self.device))
+        except (KeyError, TypeError, ValueError, IndexError) as e:  # the layout of another program's file
+            raise CheckpointError(f"checkpoint {p} is not a checkpoint of this run ({type(e).__name__}: {e})") from None
         if self.run_dir is not None and self.is_main:
             truncate_metrics(self.run_dir / "metrics.jsonl", self.step)
         return True

@@ -98,6 +98,9 @@ class ShapeResults(Results):
             if not all(math.isfinite(float(x)) for v in rows for x in v):
                 raise GinnError("--latent: latent values must be finite numbers")
             Z = torch.tensor(rows, dtype=Z.dtype, device=Z.device)
+            if not bool(torch.isfinite(Z).all()):
+                raise GinnError(f"--latent: latent values must be finite in the model's {str(Z.dtype).removeprefix('torch.')} "
+                                f"(largest {torch.finfo(Z.dtype).max:.3g})")
         return self._write_shapes(model, Z, Path(out_dir), self._output_resolution(resolution), mesh_format or "stl")
 
     def _write_shapes(self, model: nn.Module, Z: Tensor | None, out_dir: Path, resolution: int, mesh_format: str) -> list[Path]:
