@@ -164,7 +164,7 @@ def test_resume_is_bitwise_identical(tmp_path):
 
 def test_atomic_checkpoint_and_malicious_pickle_refused(tmp_path):
     p = tmp_path / "ck.pt"
-    save_checkpoint(p, {"a": torch.ones(3), "step": 4})
+    save_checkpoint(p, {"model": {"w": torch.ones(3)}, "step": 4})
     assert load_checkpoint(p)["step"] == 4
     assert not list(tmp_path.glob("*.tmp"))
     marker = tmp_path / "pwned"
