@@ -1,7 +1,7 @@
 """Data-parallel training (2 gloo ranks on CPU) equals one process training every shape.
 
-Each test spawns two processes that join a gloo group on 127.0.0.1 and train a shard of the
-shapes with :class:`ginn.train.trainer.Trainer` (the path ``torchrun -m ginn train`` takes), and
+Each test forks two processes (torch and ginn already imported, so they start at once) that join
+a gloo group on 127.0.0.1 and train a shard of the shapes with :class:`ginn.train.trainer.Trainer` (the path ``torchrun -m ginn train`` takes), and
 compares the final weights with a single-process run of the same config and seed.
 """
 
@@ -69,7 +69,7 @@ def _worker(rank: int, world: int, port: int, run_dir: str, iterations: list[int
 def _run_ranks(tmp_path: Path, iterations: list[int], extra=None, world: int = 2) -> list[dict]:
     out = str(tmp_path / "result")
     mp.start_processes(_worker, args=(world, _free_port(), str(tmp_path / "run"), iterations, extra or {}, out),
-                       nprocs=world, join=True, start_method="spawn")
+                       nprocs=world, join=True, start_method="fork")
     return [torch.load(f"{out}.{r}") for r in range(world)]
 
 
