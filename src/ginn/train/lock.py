@@ -73,14 +73,19 @@ class RunLock:
         finally:
             os.close(fd)
 
-    def holder(self) -> str:
-        """Who took the lock last, as the lock file says: ``pid 4242 on host, since 2026-12-01 10:15:02``."""
-        try:
-            data = json.loads(self.path.read_text())
-            since = _dt.datetime.fromtimestamp(float(data["since"])).isoformat(sep=" ", timespec="seconds")
-            return f"pid {int(data['pid'])} on {data['host']}, since {since}"
-        except (OSError, ValueError, KeyError, TypeError):
-            return "a process that has not yet said who it is"
+    def holder(self, wait: float = 1.0) -> str:
+        """Who took the lock last, as the lock file says: ``pid 4242 on host, since 2026-12-01 10:15:02``.
+        A holder writes this just after it locks, so an empty file is read again for up to ``wait`` s."""
+        deadline = time.monotonic() + wait
+        while True:
+            try:
+                data = json.loads(self.path.read_text())
+                since = _dt.datetime.fromtimestamp(float(data["since"])).isoformat(sep=" ", timespec="seconds")
+                return f"pid {int(data['pid'])} on {data['host']}, since {since}"
+            except (OSError, ValueError, KeyError, TypeError):
+                if time.monotonic() >= deadline:
+                    return "a process that has not yet said who it is"
+                time.sleep(0.02)
 
     def __enter__(self) -> RunLock:
         return self.acquire()
