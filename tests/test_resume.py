@@ -240,7 +240,11 @@ def test_the_lock_decides_whether_a_run_is_running(tmp_path):
         assert read_status(out).alive() and "holds its lock" in read_status(out).describe()
         with pytest.raises(GinnError, match=rf"another process writes this run \(pid {os.getpid()} on "):
             runs.resume(out, iterations=5, progress=False)
-    assert runs.resume(out, iterations=5, progress=False, results=False).step == 5
+    status = json.loads((out / "status.json").read_text())
+    (out / "status.json").write_text(json.dumps({**status, "pid": 999_999_999}))  # a process long gone
+    said = []
+    assert runs.resume(out, iterations=5, progress=False, results=False, say=said.append).step == 5
+    assert any(s.startswith(f"{out} was not running") for s in said), said
 
 
 def _resume_in_fork(out: Path, barrier, codes, n: int) -> None:

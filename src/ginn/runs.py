@@ -72,10 +72,7 @@ def resolve(problem: str | Path, preset: str | None = None, *overrides: dict,
     """
     spec = load_spec(problem)
     head = {"problem": str(Path(problem).resolve()) if is_spec_file(problem) else spec.name}
-    cfg = spec.config(preset, head, *overrides, parse_set(sets or []))
-    if cfg.params.kind != spec.kind:
-        raise ConfigError(f"config field 'params.kind': {cfg.params.kind!r} is not the kind of problem {spec.name} ({spec.kind!r})")
-    return spec, cfg
+    return spec, spec.config(preset, head, *overrides, parse_set(sets or []))
 
 
 @dataclass
@@ -218,7 +215,7 @@ def _run_config(run_dir: Path, spec: ProblemSpec | None = None) -> tuple[Problem
     if not isinstance(params, dict) or "kind" not in params:
         raw = deep_merge(raw, {"params": {"kind": spec.kind}})
     try:
-        return spec, build_config(raw)
+        return spec, spec.check_kind(build_config(raw))
     except ConfigError as e:
         raise ConfigError(f"{Path(run_dir) / 'config.yaml'}: {e}") from None
 

@@ -214,7 +214,14 @@ class ProblemSpec(BaseModel):
             avail = ", ".join(sorted(self.presets)) or "none"
             raise ConfigError(f"unknown preset '{preset}' for problem '{self.name}' (available: {avail})")
         upper = [self.defaults, *self.preset_layers(preset), *overrides]
-        return build_config(self._head(preset), self._derived_for(upper), *upper)
+        return self.check_kind(build_config(self._head(preset), self._derived_for(upper), *upper))
+
+    def check_kind(self, cfg: RunConfig) -> RunConfig:
+        """``cfg``, if its task parameters are of this problem's kind (``params.kind``); else a
+        one-line :class:`ConfigError`."""
+        if cfg.params.kind != self.kind:
+            raise ConfigError(f"config field 'params.kind': {cfg.params.kind!r} is not the kind of problem {self.name} ({self.kind!r})")
+        return cfg
 
     def _derived_for(self, upper: list[dict]) -> dict:
         """The derived layer under the partial configurations ``upper``: a budget stated there

@@ -252,7 +252,10 @@ class Status:
         if self.host == socket.gethostname():
             holder = lock_holder(self.run_dir) if self.run_dir is not None else False
             if holder is not False:
-                return (True, f"pid {holder} holds its lock") if holder else (False, "no process holds its lock")
+                if holder and (holder != os.getpid() or self.pid == os.getpid()):
+                    return True, f"pid {holder} holds its lock"
+                # a resume in this process took the lock of a run whose own process is gone
+                return False, "no process holds its lock" if not holder else f"pid {self.pid} left it; this process holds it now"
             if self.pid is None or not _pid_alive(self.pid):
                 return False, f"pid {self.pid} is gone"
             return (True, f"pid {self.pid} is alive, {beat}") if fresh else (False, f"{beat}; pid {self.pid} is another process")
