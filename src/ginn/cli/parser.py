@@ -35,9 +35,11 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--no-results", action="store_true",
                    help="skip writing shapes and figures at the end (recorded: a resume does the same)")
 
-    r = sub.add_parser("resume", help="continue an interrupted run from its last checkpoint")
+    r = sub.add_parser("resume", help="continue a run from its last checkpoint (one writer at a time: a run "
+                       "another process writes is refused), or extend a completed one with --iterations")
     r.add_argument("run_dir")
-    r.add_argument("--iterations", type=count(1), help="train up to this many iterations in total")
+    r.add_argument("--iterations", type=count(1), help="train up to this many iterations in total (a completed run: "
+                   "more than it has)")
     r.add_argument("--quiet", action="store_true", help="no progress bar and no messages")
     r.add_argument("--no-results", action="store_true", help="skip writing shapes and figures at the end")
     r.add_argument("--device", type=device, help="cpu or cuda[:N] (default: the run's)")
