@@ -53,7 +53,7 @@ VARIANTS = {
     "weighted": ["balancing.method=weighted"],
     "ph": ["connectedness.method=persistent-homology"],
     "sum": ["diversity.aggregation=sum", "diversity.eps=0.01"],
-    "random": ["latents.random=true"],
+    "random": ["latents.draw=uniform"],
     "dim2": ["latents.dim=2", "latents.n_shapes=6"],
     "eager": ["training.compile=false"],
     "float64": ["training.dtype=float64"],

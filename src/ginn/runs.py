@@ -28,6 +28,7 @@ from .errors import ConfigError, GinnError
 from .problems import ProblemSpec, load_spec
 from .problems.record import INPUTS, record_spec
 from .tasks import make_task
+from .tasks.shape.results import VERDICTS_FILE
 from .train.checkpoint import load_checkpoint, load_weights
 from .train.distributed import DistContext, on_main
 from .train.lock import RunLock
@@ -379,16 +380,31 @@ def _write_json(path: Path, data: dict) -> None:
     path.write_text(json.dumps(data, indent=2, default=float))
 
 
-def evaluate(run_dir: str | Path, resolution: int | None = None, device: str | None = None) -> dict:
-    """The metrics of a run (what ``ginn eval`` prints), also written to ``RUN/metrics.json``."""
-    metrics, _ = evaluate_with_text(run_dir, resolution, device)
+#: The most held-out codes ``ginn eval --heldout`` judges.
+MAX_HELDOUT = 100_000
+
+
+def evaluate(run_dir: str | Path, resolution: int | None = None, device: str | None = None,
+             heldout: int | None = None) -> dict:
+    """The metrics of a run (what ``ginn eval`` prints), also written to ``RUN/metrics.json``;
+    ``heldout``: the held-out latent codes of a generative shape model (None: the default count)."""
+    metrics, _ = evaluate_with_text(run_dir, resolution, device, heldout)
     return metrics
 
 
-def evaluate_with_text(run_dir: str | Path, resolution: int | None = None, device: str | None = None) -> tuple[dict, str]:
+def evaluate_with_text(run_dir: str | Path, resolution: int | None = None, device: str | None = None,
+                       heldout: int | None = None) -> tuple[dict, str]:
     """:func:`evaluate` and the task's readable text of the metrics."""
     run = load_run(run_dir, device=device)
-    ev = run.task.results.evaluate(run.model, resolution=resolution, out_dir=run.path)
+    extra = {}
+    if heldout is not None:
+        if run.task.kind != "shape" or run.task.latents() is None:
+            raise ConfigError("--heldout: judges the latent set of a generative shape run (latents.n_shapes > 1)")
+        if heldout > MAX_HELDOUT:
+            raise ConfigError(f"--heldout {heldout}: at most {MAX_HELDOUT} codes (each is a shape extracted on the "
+                              "evaluation grid)")
+        extra["heldout"] = heldout
+    ev = run.task.results.evaluate(run.model, resolution=resolution, out_dir=run.path, **extra)
     metrics = ev.to_json()
     _write_json(run.path / "metrics.json", metrics)
     return metrics, ev.text() + f"\n(written to {run.path / 'metrics.json'})"
@@ -401,6 +417,17 @@ def export(run_dir: str | Path, latents: list[list[float]] | None = None, resolu
     run = load_run(run_dir)
     out_dir = Path(out) if out else run.path / "export"
     return run.task.results.export(run.model, latents or None, out_dir, resolution, mesh_format)
+
+
+def verdict_lines(paths: list[Path]) -> list[str]:
+    """The verdict of each exported shape (the ``verdicts.json`` among ``paths`` an export wrote):
+    one line per shape and the grid they were judged on."""
+    for p in paths:
+        if Path(p).name == VERDICTS_FILE:
+            data = json.loads(Path(p).read_text())
+            return [row["text"] for row in data["shapes"]] + [
+                f"(judged as ginn eval judges them: a grid of {data['resolution']} cells along the longest side)"]
+    return []
 
 
 def view(run_dir: str | Path, out: str | Path | None = None, steps: int = 64) -> Path:

@@ -99,7 +99,8 @@ def cmd_eval(args: argparse.Namespace) -> int:
     results = []
     for rd in args.run_dirs:
         _note_unfinished(rd)
-        metrics, text = runs.evaluate_with_text(Path(rd), resolution=args.resolution, device=args.device)
+        metrics, text = runs.evaluate_with_text(Path(rd), resolution=args.resolution, device=args.device,
+                                                heldout=args.heldout)
         results.append(metrics)
         if not args.table:
             print(text)
@@ -112,8 +113,11 @@ def cmd_eval(args: argparse.Namespace) -> int:
 
 def cmd_export(args: argparse.Namespace) -> int:
     _note_unfinished(args.run_dir)
-    for p in runs.export(Path(args.run_dir), args.latent, args.resolution, args.format, args.out):
+    paths = runs.export(Path(args.run_dir), args.latent, args.resolution, args.format, args.out)
+    for p in paths:
         print(p)
+    for line in runs.verdict_lines(paths):
+        print(line)
     return 0
 
 

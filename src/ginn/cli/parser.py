@@ -55,6 +55,9 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("run_dirs", nargs="+")
     e.add_argument("--resolution", type=count(2), help="grid cells along the longest axis (default 512 in 2D, 128 in 3D)")
     e.add_argument("--table", action="store_true", help="print a markdown table with one column per run")
+    e.add_argument("--heldout", type=count(0), default=None,
+                   help="held-out latent codes of a generative shape model judged beside its reported shapes, with the "
+                   "smoothness of z -> shape along paths through Z (default 256 in 2D, 32 in 3D; 0: none)")
     e.add_argument("--device", type=device, help="cpu or cuda[:N] (default: the run's)")
 
     x = sub.add_parser("export", help="write meshes (3D) or contours (2D) for any latent value")

@@ -9,7 +9,7 @@ from typing import Literal
 import torch
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
-__all__ = ["Strict", "LossTerm", "DTYPES", "STRAIN_CLIP", "RESOLUTION", "default_resolution"]
+__all__ = ["Strict", "LossTerm", "DTYPES", "STRAIN_CLIP", "RESOLUTION", "HELDOUT_LATENTS", "default_resolution"]
 
 #: Names of the floating-point types a run may train in (``training.dtype``).
 DTYPES = {"float32": torch.float32, "float64": torch.float64}
@@ -22,6 +22,12 @@ STRAIN_CLIP = 1000.0
 #: for a figure drawn on its own (3D renders cost time per triangle), ``check`` for the feasibility
 #: checks during training.
 RESOLUTION = {"eval": {2: 512, 3: 128}, "output": {2: 256, 3: 128}, "figure": {2: 256, 3: 64}, "check": {2: 128, 3: 64}}
+
+
+#: Held-out latent codes a generative model is judged at beside its reported ones, by purpose and
+#: dimension: ``check`` in the feasibility checks during training, ``eval`` in ``ginn eval``
+#: (:func:`ginn.models.latents.heldout_latents`).
+HELDOUT_LATENTS = {"eval": {2: 256, 3: 32}, "check": {2: 16, 3: 4}}
 
 
 def default_resolution(purpose: Literal["eval", "output", "figure", "check"], dim: int) -> int:

@@ -57,7 +57,12 @@ class LatentConfig(Strict):
     dim: int = Field(1, ge=1, description="latent dimension when n_shapes > 1")
     low: float = Field(-1.0, description="lower end of the latent interval")
     high: float = Field(1.0, description="upper end of the latent interval")
-    random: bool = Field(False, description="draw fresh random latents in [low, high]^dim every iteration")
+    draw: Literal["fixed", "uniform", "lattice"] = Field(
+        "fixed", description="the codes each iteration trains: lattice (a randomly shifted rank-1 lattice of n_shapes "
+        "codes in [low, high]^dim, so that training covers the whole latent set and every code of it gives a "
+        "feasible shape), uniform (n_shapes fresh independent uniform draws), fixed (the n_shapes reported codes, "
+        "the paper's); the reported codes are the shapes a run writes and ginn eval measures either way; shape specs "
+        "get lattice from the settings derived from their geometry")
 
 
 class BalancingConfig(Strict):

@@ -155,16 +155,33 @@ RETIRED: dict[str, tuple[Any, str]] = {
 }
 
 
+#: Settings that were replaced by another, with the function from the old value to the new settings.
+#: Run directories written before keep resuming as they trained.
+RENAMED: dict[str, Any] = {
+    "latents.random": lambda v: {"latents.draw": "uniform" if v else "fixed"},
+}
+
+
 def drop_retired(layer: dict) -> dict:
-    """``layer`` without the :data:`RETIRED` settings it names at their inert value.
+    """``layer`` without the :data:`RETIRED` settings it names at their inert value, and with the
+    :data:`RENAMED` ones in their new form.
 
     Raises:
         ConfigError: a retired setting with any other value (one line: its replacement).
     """
     flat = flattened(layer)
     hit = [k for k in flat if k in RETIRED]
-    if not hit:
+    renamed = [k for k in flat if k in RENAMED]
+    if not hit and not renamed:
         return layer
+    for key in renamed:
+        old = flat.pop(key)
+        if not isinstance(old, bool):
+            raise ConfigError(f"config field '{key}': must be true or false")
+        for new, value in RENAMED[key](old).items():
+            if new in flat and flat[new] != value:
+                raise ConfigError(f"config field '{key}' is the old name of '{new}': give only '{new}'")
+            flat[new] = value
     for key in hit:
         inert, why = RETIRED[key]
         if flat[key] != inert:

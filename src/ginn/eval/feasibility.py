@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import replace
 
 import torch
@@ -46,7 +47,7 @@ from .results import FeasibilitySummary, ShapeMetrics
 
 __all__ = ["FEASIBILITY_METRICS", "BETTI_METRICS", "feasibility_metrics", "judged_volume_outside", "shape_violations",
            "violations", "ratios",
-           "summarize", "verdict_text", "format_feasibility", "short_summary", "check_feasibility", "FeasibilityCheck",
+           "summarize", "verdict_text", "format_feasibility", "short_summary", "check_feasibility", "FeasibilityCheck", "evaluating",
            "measured"]
 
 #: The metrics every check measures (the worst values of a summary read them).
@@ -100,14 +101,15 @@ def ratios(metrics: Mapping, problem: Problem, verdicts: Sequence[Verdict] | Non
 
 
 def summarize(shapes: Sequence[Mapping], problem: Problem, diversity: float | None = None,
-              verdicts: Sequence[Verdict] | None = None) -> FeasibilitySummary:
+              verdicts: Sequence[Verdict] | None = None, latents: Tensor | None = None) -> FeasibilitySummary:
     """The verdict on the per-shape metrics ``shapes`` and the set's ``diversity``
     (``diversity_mean``; None: not measured or fewer than two non-empty shapes).
 
     ``worst``: the largest CD1, the largest volume outside E that the verdict bounds
     (:func:`judged_volume_outside`) as ``volume_outside``, and the most pieces inside E;
     ``ratios``: the largest of :func:`ratios` over the shapes, ``None`` for ``inf``, then the set
-    verdicts' (a least diversity: its bound over the set's diversity)."""
+    verdicts' (a least diversity: its bound over the set's diversity). With ``latents (S, k)``
+    the summary names each shape's code and its largest ratio (``latents``, ``shape_ratios``)."""
     vs = _verdicts(problem, verdicts)
     per = [shape_violations(m, problem, vs) for m in shapes]
     worst: dict = {}
@@ -118,10 +120,14 @@ def summarize(shapes: Sequence[Mapping], problem: Problem, diversity: float | No
         if vals:
             worst[k] = max(float(x) for x in vals)
     top: dict[str, float] = {}
+    per_shape: list[float] = []
     for m in shapes:
+        mine = 0.0
         for v in vs:
             if not v.on_set and (r := v.ratio(m)) is not None:
                 top[v.name] = max(top.get(v.name, 0.0), r)
+                mine = max(mine, r)
+        per_shape.append(mine)
     whole = {"diversity_mean": diversity, "n_shapes": len(shapes)}
     set_violations = {}
     for v in vs:
@@ -130,8 +136,11 @@ def summarize(shapes: Sequence[Mapping], problem: Problem, diversity: float | No
                 top[v.name] = r
             if (bad := v.violation(whole)) is not None:
                 set_violations[v.name] = bad
+    named = latents is not None
     return FeasibilitySummary(sum(not v for v in per), len(shapes), per, worst,
-                              {k: r if math.isfinite(r) else None for k, r in top.items()}, set_violations)
+                              {k: r if math.isfinite(r) else None for k, r in top.items()}, set_violations,
+                              latents=latents.detach().double().cpu().tolist() if named else None,
+                              shape_ratios=[r if math.isfinite(r) else None for r in per_shape] if named else None)
 
 
 def format_feasibility(summary: FeasibilitySummary, verdicts: Sequence[Verdict] = ()) -> str:
@@ -152,35 +161,63 @@ class FeasibilityCheck:
         resolution: grid cells along the longest axis of the domain.
         seed: of the interface samples.
         verdicts: what to judge (None: :func:`ginn.constraints.problem_verdicts`).
+        heldout: codes ``(H, k)`` judged beside the shapes of each call (a generative model's
+            latent set beyond its reported codes: the summary's ``heldout``), or None.
     """
 
-    def __init__(self, problem: Problem, resolution: int, seed: int = 0, verdicts: Sequence[Verdict] | None = None):
+    def __init__(self, problem: Problem, resolution: int, seed: int = 0, verdicts: Sequence[Verdict] | None = None,
+                 heldout: Tensor | None = None):
         self.problem = problem
+        self.resolution = resolution
         self.verdicts = _verdicts(problem, verdicts)
         self.metrics = feasibility_metrics(problem, self.verdicts)
         self.context: MetricContext = prepare_context(problem, resolution, n_design_boundary_samples=0, seed=seed)
         self.seed = seed
+        self.heldout = heldout
+
+    def shape(self, field: Field, z: Tensor | None) -> tuple[ShapeMetrics, ExtractedShape]:
+        """The metrics the verdicts read of the shape ``{field(., z) <= 0}`` and the extracted shape."""
+        sh = extract_shape(field, z, self.context.grid)
+        m = measured(shape_metrics(sh, self.context, field, z, only=self.metrics), self.verdicts, sh, self.context, field, z)
+        return m, sh
+
+    def latents(self, field: Field, Z: Tensor) -> FeasibilitySummary:
+        """The verdict on each code of ``Z (n, k)`` on its own (no bound on the set), naming the codes."""
+        per_shape = [v for v in self.verdicts if not v.on_set]
+        with evaluating(field):
+            shapes = [self.shape(field, Z[i])[0] for i in range(Z.shape[0])]
+        return summarize(shapes, self.problem, None, per_shape, latents=Z)
 
     def __call__(self, field: Field, Z: Tensor | None) -> FeasibilitySummary:
-        """The summary for the shapes ``{field(., z_i) <= 0}`` (``Z (S, k)`` or None)."""
-        was_training = field.training if isinstance(field, torch.nn.Module) else None
-        if was_training:
-            field.eval()
-        try:
+        """The summary for the shapes ``{field(., z_i) <= 0}`` (``Z (S, k)`` or None), with the
+        verdict at the held-out codes when the check has them."""
+        with evaluating(field):
             codes = [None] if Z is None else [Z[i] for i in range(Z.shape[0])]
             shapes, boundaries = [], []
             need_diversity = any(v.on_set for v in self.verdicts)
             for z in codes:
-                sh = extract_shape(field, z, self.context.grid)
-                shapes.append(measured(shape_metrics(sh, self.context, field, z, only=self.metrics), self.verdicts,
-                                       sh, self.context, field, z))
+                m, sh = self.shape(field, z)
+                shapes.append(m)
                 if need_diversity and sh.boundary.n_elements > 0:
                     boundaries.append(sh.boundary)
             div = diversity_mean(boundaries, seed=self.seed) if len(boundaries) > 1 else None
-        finally:
-            if was_training:
-                field.train()
-        return summarize(shapes, self.problem, div, self.verdicts)
+        summary = summarize(shapes, self.problem, div, self.verdicts)
+        if self.heldout is not None and Z is not None:
+            summary.heldout = self.latents(field, self.heldout.to(device=Z.device, dtype=Z.dtype))
+        return summary
+
+
+@contextmanager
+def evaluating(field: Field):
+    """``field`` in evaluation mode for the block (a module that was training is put back)."""
+    was_training = field.training if isinstance(field, torch.nn.Module) else None
+    if was_training:
+        field.eval()
+    try:
+        yield field
+    finally:
+        if was_training:
+            field.train()
 
 
 def check_feasibility(field: Field, Z: Tensor | None, problem: Problem, resolution: int, seed: int = 0,

@@ -41,8 +41,9 @@ Each move is a hinge on the field at a fixed cell centre (``relu(m - f(x))`` to 
 with the margin; the batch loss is the sum of a shape's hinges, averaged over the shapes.
 
 The persistence diagram is recomputed every ``every`` calls; in between the same cells are
-penalised with the field's current values (the grid, the nodes outside E and the schedule are
-:class:`ginn.topology.base.GridTopologyLoss`'s).
+penalised with the field's current values, each at the latent code of its shape at the last
+recomputation (when the step's codes move, the cells belong to those codes); the grid, the nodes
+outside E and the schedule are :class:`ginn.topology.base.GridTopologyLoss`'s.
 """
 
 from __future__ import annotations
@@ -288,11 +289,13 @@ class HoleCountLoss(GridTopologyLoss):
         self.margin = float(self.spacing.max())
         self._cells: tuple[Tensor, Tensor, Tensor] | None = None  # points (q, d), shape index (q,), sign (q,)
         self._seeds: list[dict[int, np.ndarray]] = []  # per shape: the seed centres in use, {k: (q, d)}
+        self._held: Tensor | None = None  # the codes of the last recomputation (the cells belong to them)
 
     def _state(self) -> dict:
         cells = None if self._cells is None else [t.cpu() for t in self._cells]
         seeds = [{int(k): v.tolist() for k, v in sd.items()} for sd in self._seeds]
-        return {"calls": self.calls, "cells": cells, "seeds": seeds}
+        held = None if self._held is None else self._held.detach().cpu()
+        return {"calls": self.calls, "cells": cells, "seeds": seeds, "latents": held}
 
     def _load(self, state: dict) -> None:
         self.calls = int(state.get("calls", 0))
@@ -301,10 +304,13 @@ class HoleCountLoss(GridTopologyLoss):
         d = self.domain.dim
         self._seeds = [{int(k): np.asarray(v, np.int64).reshape(-1, d) for k, v in sd.items()}
                        for sd in state.get("seeds", [])]
+        held = state.get("latents")
+        self._held = None if held is None else held.to(self.device, self.dtype)
 
     def _recompute(self, field, Z: Tensor | None) -> None:
         S = 1 if Z is None else int(Z.shape[0])
         Zd = None if Z is None else Z.detach().to(self.device, self.dtype)
+        self._held = Zd
         vals, top = self.grid_values(field, Zd)
         xs, ss, signs, counts = [], [], [], []
         previous = self._seeds if len(self._seeds) == S else [{} for _ in range(S)]
@@ -326,12 +332,15 @@ class HoleCountLoss(GridTopologyLoss):
 
     def __call__(self, field, Z: Tensor | None) -> Tensor:
         t0 = time.perf_counter()
-        if self._cells is None or self.due():
+        S = 1 if Z is None else int(Z.shape[0])
+        if self._held is None and Z is not None and self._cells is not None:  # a state without its codes
+            self._held = Z.detach().to(self.device, self.dtype)
+        if self._cells is None or self.due() or (Z is not None and self._held.shape != Z.shape):
             self._recompute(field, Z)
         self.calls += 1
         x, sh, sign = self._cells
-        S = 1 if Z is None else int(Z.shape[0])
-        f = field(x.detach(), latents_of(Z, sh))
+        # the cells belong to the codes of the last recomputation: judged there until the next one
+        f = field(x.detach(), latents_of(None if Z is None else self._held.to(Z.dtype), sh))
         sign = sign.to(device=f.device, dtype=f.dtype)
         # raise (sign +1): relu(m - f); lower (sign -1): relu(f + m)
         loss = torch.relu(self.margin - sign * f).sum() / S

@@ -30,7 +30,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from ..eval.feasibility import FEASIBILITY_METRICS, judged_volume_outside, shape_violations, verdict_text
+from ..eval.feasibility import FEASIBILITY_METRICS, FeasibilityCheck, judged_volume_outside, shape_violations, verdict_text
 from ..eval.metrics import extract_shape, prepare_context, shape_metrics
 from ..eval.reference.minimal_surface import plateau_reference
 from ..eval.results import ShapeMetrics
@@ -64,11 +64,24 @@ class ExplorerLatents:
     grid: tuple[int, int] | None = None
 
 
-def explorer_latents(Z: Tensor | None, steps: int) -> ExplorerLatents:
-    """The slider positions for trained latents ``Z (S, k)`` (None: one shape) and ``steps`` values."""
+def explorer_latents(Z: Tensor | None, steps: int, box: tuple[float, float] | None = None) -> ExplorerLatents:
+    """The slider positions for trained latents ``Z (S, k)`` (None: one shape) and ``steps`` values
+    (with the latent ``box`` and two or more dimensions: a grid over its first two axes)."""
     if Z is None or Z.shape[1] == 0:
         return ExplorerLatents([None if Z is None else Z[0]], ["the shape" if Z is None else "the pattern"], [True])
     Z = Z.detach().double().cpu()
+    if box is not None and Z.shape[1] >= 2:
+        n = max(2, math.ceil(math.sqrt(steps)))
+        t = torch.linspace(box[0], box[1], n, dtype=torch.float64)
+        centre = torch.full((Z.shape[1],), 0.5 * (box[0] + box[1]), dtype=torch.float64)
+        codes, labels = [], []
+        for i in range(n):
+            for j in range(n):
+                c = centre.clone()
+                c[0], c[1] = t[i], t[j]
+                codes.append(c)
+                labels.append(f"z1 {float(t[i]):.3g}, z2 {float(t[j]):.3g}")
+        return ExplorerLatents(codes, labels, [False] * len(codes), (n, n))
     if Z.shape[1] == 1:
         z = Z[:, 0]
         lo, hi = float(z.min()), float(z.max())
@@ -99,8 +112,9 @@ def explorer_latents(Z: Tensor | None, steps: int) -> ExplorerLatents:
     return ExplorerLatents(codes, labels, [False] * len(codes), (n, n))
 
 
-def _verdict(m: ShapeMetrics, problem: Problem) -> str:
-    lines = verdict_text(shape_violations(m, problem)).replace(", ", "; ").split("; ")
+def _verdict(m: ShapeMetrics, problem: Problem, judge: FeasibilityCheck | None = None) -> str:
+    verdicts = None if judge is None else judge.verdicts
+    lines = verdict_text(shape_violations(m, problem, verdicts), verdicts or ()).replace(", ", "; ").split("; ")
     cd1, vol, b0 = m.get("interface_cd1"), judged_volume_outside(m), m.get("b0_in_design_region")
     if cd1 is not None and problem.interfaces:
         lines.append(f"CD1 {cd1:.2e} (bound {problem.tolerances.interface * problem.unit_scale:.2e})")
@@ -238,20 +252,25 @@ _SCRIPT = """
 
 
 def write_explorer(field: Field, Z: Tensor | None, problem: Problem, path: str | Path, *, steps: int = 64,
-                   resolution: int | None = None, title: str = "") -> Path:
+                   resolution: int | None = None, title: str = "", judge: FeasibilityCheck | None = None,
+                   box: tuple[float, float] | None = None) -> Path:
     """Write the explorer page of the shapes ``{field(., z) <= 0}`` to ``path``; returns it.
 
     Arguments:
         field: the trained field; Z: its trained latents ``(S, k)`` or None.
         steps: evenly spaced latent values besides the trained ones (a plane: about that many).
         resolution: grid cells along the longest domain axis (default :data:`EXPLORER_RESOLUTION`).
+        judge: what gives each position's verdict (``ginn eval``'s: :class:`ginn.eval.latent_space.LatentJudge`);
+            None: the metrics of the picture's own grid, marked as an estimate on that grid.
+        box: the latent set ``[low, high]^k``: two or more latent dimensions get a grid over its
+            first two axes (the others at its centre) instead of the plane through the trained codes.
     """
     import plotly.graph_objects as go
 
     d = problem.dim
     res = resolution or EXPLORER_RESOLUTION[d]
     ctx = prepare_context(problem, res, n_design_boundary_samples=0, seed=0)
-    lat = explorer_latents(Z, steps)
+    lat = explorer_latents(Z, steps, box)
     if isinstance(field, torch.nn.Module):
         field.eval()
     dev = next(field.parameters()).device if isinstance(field, torch.nn.Module) else torch.device("cpu")
@@ -260,9 +279,14 @@ def write_explorer(field: Field, Z: Tensor | None, problem: Problem, path: str |
     for idx, z in enumerate(lat.codes):
         zz = None if z is None else z.to(dev, dt)
         shape = extract_shape(field, zz, ctx.grid)
-        m = shape_metrics(shape, ctx, field, zz, only=FEASIBILITY_METRICS)
+        if judge is None:
+            m = shape_metrics(shape, ctx, field, zz, only=FEASIBILITY_METRICS)
+            how = f"estimate on the picture's grid of {res} cells (ginn eval judges finer)"
+        else:
+            m = judge.shape(field, zz)[0]
+            how = f"as ginn eval judges it ({judge.resolution} cells)"
         name = str(idx) if lat.grid is None else f"{idx // lat.grid[1]},{idx % lat.grid[1]}"
-        text = f"<b>latent {lat.labels[idx]}</b><br>{_verdict(m, problem)}"
+        text = f"<b>latent {lat.labels[idx]}</b><br>{_verdict(m, problem, judge)}<br><i>{how}</i>"
         frames.append(go.Frame(name=name, data=[_shape_trace(shape, ctx.grid, d)], traces=[0],
                                layout={"annotations": [note(text)]}))
         names.append(name)

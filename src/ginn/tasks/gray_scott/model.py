@@ -38,7 +38,7 @@ class GrayScottField(nn.Module):
 
 def build_field(cfg: RunConfig, params: GrayScottParams) -> GrayScottField:
     """Two identical networks per ``cfg.model`` (``siren`` or ``fourier``), periodic encoding always on."""
-    k = cfg.latents.dim if cfg.latents.n_shapes > 1 or cfg.latents.random else 0
+    k = cfg.latents.dim if cfg.latents.n_shapes > 1 or cfg.latents.draw != "fixed" else 0
     m = cfg.model
 
     def one() -> nn.Module:

@@ -60,7 +60,7 @@ class GrayScottTask(Task):
         self.params = parse_params(cfg.params)
         self._target_cache: tuple[int, Tensor, Tensor, Tensor] | None = None  # step, offset, target, latents
         lat = cfg.latents
-        if lat.n_shapes > 1 and not lat.random:
+        if lat.n_shapes > 1 and lat.draw == "fixed":
             self.Z = fixed_latents(lat.n_shapes, lat.dim, lat.low, lat.high, cfg.seed).to(device=self.device, dtype=dtype)
         else:
             self.Z = None
@@ -81,7 +81,7 @@ class GrayScottTask(Task):
         lat = self.cfg.latents
         if self.Z is not None:
             return self.Z
-        if lat.random:
+        if lat.draw != "fixed":
             r = torch.rand(lat.n_shapes, lat.dim, generator=gen, dtype=self.dtype)
             return (lat.low + (lat.high - lat.low) * r).to(self.device)
         return torch.zeros(1, 0, dtype=self.dtype, device=self.device)
@@ -192,7 +192,7 @@ class GrayScottTask(Task):
         """Fixed latents in the configured range, for the figures and views of a run whose latents
         are drawn afresh every iteration (``(max(S, 2), k)``; ``(1, 0)`` without latents)."""
         lat = self.cfg.latents
-        k = lat.dim if (lat.n_shapes > 1 or lat.random) else 0
+        k = lat.dim if (lat.n_shapes > 1 or lat.draw != "fixed") else 0
         if k == 0:
             return torch.zeros(1, 0, dtype=self.dtype, device=self.device)
         return fixed_latents(max(lat.n_shapes, 2), k, lat.low, lat.high, self.cfg.seed).to(self.device, self.dtype)

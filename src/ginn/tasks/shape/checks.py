@@ -34,6 +34,15 @@ from ...train.trainer import Trainer
 __all__ = ["FeasibilityChecks", "candidate_ratios"]
 
 
+def _heldout_record(h: FeasibilitySummary) -> dict:
+    """The held-out codes' part of a check's event: the count and the worst code."""
+    out: dict = {"feasible": h.feasible, "shapes": h.shapes}
+    w = h.worst_latent()
+    if w is not None:
+        out["worst_latent"], out["worst_ratio"] = w[0], w[1]
+    return out
+
+
 def candidate_ratios(iterate: dict[str, float | None], mean: dict[str, float | None] | None) -> dict[str, float | None]:
     """Each constraint's ratio to its bound in the better of the two candidates a check can keep:
     the iterate and the mean of the weights since the previous check (``None``: undefined, worse
@@ -119,7 +128,10 @@ class FeasibilityChecks(Callback):
             r = self.restored
             what = (f"the mean of the weights over iterations {r['from_step'] - r['mean_iterations'] + 1}-{r['from_step']}"
                     if r["mean"] else f"the weights of iteration {r['from_step']}")
-            lines.append(f"kept {what}: {r['feasible']} of {r['shapes']} shapes feasible there, "
+            held = r.get("heldout")
+            also = "" if held is None else (f" and {held['feasible']} of {held['shapes']} held-out latents "
+                                             f"({held['instead_of']} at the end)")
+            lines.append(f"kept {what}: {r['feasible']} of {r['shapes']} shapes feasible there{also}, "
                          f"{r['instead_of']} at the end (training.keep_most_feasible)")
         if self.last is not None:
             lines.append(f"{self.last.text(self.verdicts)}\n(checked on a coarse grid; `ginn eval` for every metric)")
@@ -146,15 +158,19 @@ class FeasibilityChecks(Callback):
         self.last = summary
         record = {"step": trainer.step, "event": "feasibility", "feasible": summary.feasible, "shapes": summary.shapes,
                   "worst": summary.worst, "violated": summary.violated_counts(), "ratios": summary.ratios}
+        if summary.heldout is not None:
+            record["heldout"] = _heldout_record(summary.heldout)
         interval_mean, n_mean, self.mean, self.mean_count = self.mean, self.mean_count, None, 0
         averaged = None
         if self.t.keep_most_feasible and interval_mean is not None and n_mean > 1:
             averaged = self._judge_weights(trainer.model, interval_mean)
             record["mean"] = {"feasible": averaged.feasible, "worst": averaged.worst, "iterations": n_mean,
                               "ratios": averaged.ratios}
+            if averaged.heldout is not None:
+                record["mean"]["heldout"] = _heldout_record(averaged.heldout)
         raised = {}
         if trainer.step < self.t.iterations:  # not at the end, nor in the L-BFGS phase
-            ratios = candidate_ratios(summary.ratios, None if averaged is None else averaged.ratios)
+            ratios = candidate_ratios(summary.judged_ratios(), None if averaged is None else averaged.judged_ratios())
             raised = trainer.balancer.on_check(ratios, self._checks_left(trainer))
         if raised:
             record["raised"] = {k: round(v, 4) for k, v in raised.items()}
@@ -163,8 +179,8 @@ class FeasibilityChecks(Callback):
             if averaged is not None:
                 candidates.append((averaged, interval_mean))
             # the mean wins a tie: it is the centre of what the weights did over the interval
-            top, weights = max(reversed(candidates), key=lambda c: c[0].feasible)
-            if self.best is None or top.feasible >= self.best["summary"].feasible:
+            top, weights = max(reversed(candidates), key=lambda c: c[0].rank())
+            if self.best is None or top.rank() >= self.best["summary"].rank():
                 if weights is None:
                     weights = {k: v.detach().clone() for k, v in trainer.model.state_dict().items()}
                 self.best = {"step": trainer.step, "summary": top, "model": weights, "mean": top is not summary,
@@ -215,4 +231,7 @@ class FeasibilityChecks(Callback):
                          "mean_iterations": best.get("mean_iterations", 0),
                          "feasible": best["summary"].feasible, "shapes": best["summary"].shapes,
                          "instead_of": last.feasible}
+        if best["summary"].heldout is not None and last.heldout is not None:
+            self.restored["heldout"] = {"feasible": best["summary"].heldout.feasible,
+                                        "shapes": best["summary"].heldout.shapes, "instead_of": last.heldout.feasible}
         trainer.log(self.restored)

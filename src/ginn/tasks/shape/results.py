@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -12,8 +13,9 @@ from torch import Tensor, nn
 from ...config import default_resolution
 from ...constraints import verdict_text
 from ...errors import ConfigError, GinnError
+from ...eval.latent_space import LatentJudge, LatentSurvey, axis_paths, survey_latents
 from ...eval.plateau import evaluate_plateau
-from ...eval.results import ShapeEvaluation
+from ...eval.results import FeasibilitySummary, ShapeEvaluation
 from ...eval.shapes import evaluate_shapes
 from ...extract.export import CONTOUR_FORMATS, export_shapes, latent_label, shape_boundary
 from ...extract.grid import check_grid_memory, make_grid
@@ -25,7 +27,14 @@ from ...viz.plot import plot_run, save_shape_figure
 if TYPE_CHECKING:
     from .task import ShapeTask
 
-__all__ = ["ShapeResults"]
+__all__ = ["ShapeResults", "PATH_CODES", "VERDICTS_FILE"]
+
+#: What an export writes beside the shapes: each shape's code and verdict (JSON).
+VERDICTS_FILE = "verdicts.json"
+
+#: Codes per latent axis of the smoothness paths of a latent space of two or more dimensions, by
+#: the problem's dimension (one dimension: the held-out codes are the path).
+PATH_CODES = {2: 32, 3: 12}
 
 
 def _code_label(i: int, z: Tensor | None) -> str:
@@ -70,15 +79,34 @@ class ShapeResults(Results):
             paths += write_plateau_results(model, self.problem, run_dir, resolution=res)
         return paths
 
-    def evaluate(self, model: nn.Module, resolution: int | None = None, out_dir: Path | None = None) -> ShapeEvaluation:
+    def evaluate(self, model: nn.Module, resolution: int | None = None, out_dir: Path | None = None,
+                 heldout: int | None = None) -> ShapeEvaluation:
         """The Appendix B.1 metrics of every shape (:func:`ginn.eval.shapes.evaluate_shapes`) judged by
-        the task's verdicts, and the comparison with the reference surface where the problem has one."""
-        res = evaluate_shapes(model, self.task.Z, self.problem,
-                              self._checked(resolution or default_resolution("eval", self.problem.dim), 64),
-                              verdicts=self.task.verdicts())
+        the task's verdicts; for a generative model the verdict at ``heldout`` held-out codes of its
+        latent set (None: :data:`ginn.config.HELDOUT_LATENTS`; 0: none) and the smoothness of
+        z -> shape (:mod:`ginn.eval.latent_space`); the comparison with the reference surface where
+        the problem has one."""
+        res_ = self._checked(resolution or default_resolution("eval", self.problem.dim), 64)
+        res = evaluate_shapes(model, self.task.Z, self.problem, res_, verdicts=self.task.verdicts())
+        if self.task.Z is not None and heldout != 0:
+            survey = self.survey(model, res_, heldout)
+            res.feasibility.heldout = survey.summary
+            res.latent_space = survey.to_json()
         if self.problem.reference == "minimal-surface":
             res.reference.update(evaluate_plateau(model, self.problem))
         return res
+
+    def judge(self, resolution: int | None = None) -> LatentJudge:
+        """The verdict of any code as ``ginn eval`` at ``resolution`` (default: the evaluation's) gives it."""
+        res = self._checked(resolution or default_resolution("eval", self.problem.dim), 64)
+        return LatentJudge(self.problem, res, self.task.verdicts())
+
+    def survey(self, model: nn.Module, resolution: int, heldout: int | None = None) -> LatentSurvey:
+        """The held-out codes' verdicts and the smoothness of z -> shape (:func:`ginn.eval.latent_space.survey_latents`)."""
+        lat = self.task.cfg.latents
+        codes = self.task.heldout("eval", heldout)
+        paths = None if lat.dim == 1 else axis_paths(lat.low, lat.high, lat.dim, PATH_CODES[self.problem.dim])
+        return survey_latents(model, codes, self.judge(resolution), paths)
 
     def export(self, model: nn.Module, latents: Tensor | list[list[float]] | None, out_dir: Path,
                resolution: int | None = None, mesh_format: str | None = None) -> list[Path]:
@@ -103,20 +131,32 @@ class ShapeResults(Results):
                                 f"(largest {torch.finfo(Z.dtype).max:.3g})")
         return self._write_shapes(model, Z, Path(out_dir), self._output_resolution(resolution), mesh_format or "stl")
 
+    def verdicts_of(self, model: nn.Module, Z: Tensor | None) -> FeasibilitySummary:
+        """Each code's verdict as ``ginn eval`` gives it (:meth:`judge`), the codes named."""
+        judge = self.judge()
+        return judge(model, None) if Z is None else judge.latents(model, Z)
+
     def _write_shapes(self, model: nn.Module, Z: Tensor | None, out_dir: Path, resolution: int, mesh_format: str) -> list[Path]:
         """Each shape of ``Z (S, k)`` (None: the single shape): a mesh in 3D; in 2D its contours, and
-        a drawing over the problem titled with its feasibility verdict (coarse-grid check)."""
+        a drawing over the problem titled with its verdict; ``verdicts.json``: each shape's verdict
+        as ``ginn eval`` gives it (:meth:`verdicts_of`)."""
         p = self.problem
-        if p.dim == 3:
-            return export_shapes(model, Z, p.domain, out_dir, resolution, mesh_format=mesh_format)
-        paths = export_shapes(model, Z, p.domain, out_dir, resolution, contour_formats=[f for f in CONTOUR_FORMATS if f != "png"])
-        summary, verdicts = self.task.checker()(model, Z), self.task.verdicts()
+        summary, verdicts = self.verdicts_of(model, Z), self.task.verdicts()
+        out_dir.mkdir(parents=True, exist_ok=True)
+        record = out_dir / VERDICTS_FILE
         codes = [None] if Z is None else [Z[i] for i in range(Z.shape[0])]
-        for i, (z, violated) in enumerate(zip(codes, summary.violations)):
+        rows = [{"latent": None if z is None else [float(v) for v in z], "feasible": not bad,
+                 "violations": {k: v.to_json() for k, v in bad.items()}, "text": _code_label(i, z) + verdict_text(bad, verdicts)}
+                for i, (z, bad) in enumerate(zip(codes, summary.violations))]
+        record.write_text(json.dumps({"resolution": self.judge().resolution, "shapes": rows}, indent=2) + "\n")
+        if p.dim == 3:
+            return export_shapes(model, Z, p.domain, out_dir, resolution, mesh_format=mesh_format) + [record]
+        paths = export_shapes(model, Z, p.domain, out_dir, resolution, contour_formats=[f for f in CONTOUR_FORMATS if f != "png"])
+        for i, (z, row) in enumerate(zip(codes, rows)):
             boundary, _, _ = shape_boundary(model, z, p.domain, resolution)
             name = "shape.png" if z is None else f"shape_{i:03d}_{latent_label(z)}.png"
-            paths.append(save_shape_figure(boundary, p, out_dir / name, _code_label(i, z) + verdict_text(violated, verdicts)))
-        return paths
+            paths.append(save_shape_figure(boundary, p, out_dir / name, row["text"]))
+        return paths + [record]
 
     def plot(self, model: nn.Module, run_dir: Path, resolution: int | None = None) -> list[Path]:
         """The paper-style figures into ``run_dir/figures`` (:func:`ginn.viz.plot.plot_run`)."""
@@ -124,8 +164,8 @@ class ShapeResults(Results):
         if resolution is not None:
             self._checked(resolution, 32)
         Z, titles = self.task.Z, None
-        if self.problem.dim == 3:  # each shape's views titled with its verdict (the coarse-grid check)
-            summary, verdicts = self.task.checker()(model, Z), self.task.verdicts()
+        if self.problem.dim == 3:  # each shape's views titled with its verdict (as ginn eval gives it)
+            summary, verdicts = self.verdicts_of(model, Z), self.task.verdicts()
             codes = [None] if Z is None else [Z[i] for i in range(Z.shape[0])]
             titles = [_code_label(i, z) + verdict_text(v, verdicts) for i, (z, v) in enumerate(zip(codes, summary.violations))]
         return plot_run(model, Z, self.problem, run_dir / "figures", metrics_jsonl=run_dir / "metrics.jsonl",
@@ -133,4 +173,6 @@ class ShapeResults(Results):
 
     def view(self, model: nn.Module, path: Path, steps: int = 64, title: str = "") -> Path:
         """The latent-space explorer (:func:`ginn.viz.explorer.write_explorer`)."""
-        return write_explorer(model, self.task.Z, self.problem, path, steps=steps, title=title)
+        lat = self.task.cfg.latents
+        return write_explorer(model, self.task.Z, self.problem, path, steps=steps, title=title, judge=self.judge(),
+                              box=(lat.low, lat.high))

@@ -17,14 +17,14 @@ from collections.abc import Callable, Sequence
 import torch
 from torch import Tensor, nn
 
-from ...config import LossTerm, RunConfig, default_resolution
+from ...config import HELDOUT_LATENTS, LossTerm, RunConfig, default_resolution
 from ...constraints import BUILTIN_SETS, Batch, Constraint, SampleSet, Setting, Verdict, shape_constraints, verdicts_of
 from ...errors import ConfigError, SpecError
 from ...eval.feasibility import FeasibilityCheck
 from ...geometry.base import Region
 from ...models.factory import build_model
 from ...models.frame import DomainFrame
-from ...models.latents import fixed_latents, latent_dim, random_latents
+from ...models.latents import fixed_latents, heldout_latents, latent_dim, step_latents
 from ...models.symmetric import FOLD_SMOOTHING, SymmetricField
 from ...problems.derived import length_scale
 from ...problems.problem import Problem
@@ -132,11 +132,7 @@ class ShapeTask(Task):
     # --- one step ---------------------------------------------------------------------------
 
     def _step_latents(self, gen: torch.Generator) -> Tensor | None:
-        if self.cfg.latents.n_shapes == 1:
-            return None
-        if self.cfg.latents.random:
-            return random_latents(self.cfg.latents, gen, self.device, self.dtype)
-        return self.Z
+        return step_latents(self.cfg.latents, gen, self.Z, self.device, self.dtype)
 
     def draw_batch(self, S: int, active: set[str], gen: torch.Generator, Z: Tensor | None = None, step: int = 0) -> Batch:
         """Fresh per-shape samples of the sets the active constraints read (and those drawn at
@@ -192,8 +188,15 @@ class ShapeTask(Task):
         definitions of ``ginn eval``, built once per task."""
         if self._check is None:
             self._check = FeasibilityCheck(self.problem, default_resolution("check", self.d), seed=self.cfg.seed,
-                                           verdicts=self.verdicts())
+                                           verdicts=self.verdicts(), heldout=self.heldout("check"))
         return self._check
+
+    def heldout(self, purpose: str = "eval", n: int | None = None) -> Tensor | None:
+        """The held-out codes of the latent set judged for ``purpose`` (``check`` or ``eval``;
+        :data:`ginn.config.HELDOUT_LATENTS`, or ``n``), ``(H, k)``; None for a single shape."""
+        if self.Z is None:
+            return None
+        return heldout_latents(self.cfg.latents, n or HELDOUT_LATENTS[purpose][self.d], self.device, self.dtype)
 
     def callbacks(self, dist: DistContext | None = None) -> list[Callback]:
         """The feasibility checks (:class:`~ginn.tasks.shape.checks.FeasibilityChecks`), in a single

@@ -1,0 +1,121 @@
+"""The latent set of a generative model: the codes drawn at each step cover Z, the held-out codes,
+the feasible share of Z and the smoothness of z -> shape on a field whose answer is known."""
+
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from ginn.config import LatentConfig, build_config
+from ginn.eval.latent_space import LatentJudge, axis_paths, survey_latents
+from ginn.models.latents import heldout_latents, lattice_generator, lattice_latents, lattice_span, step_latents, unit_lattice
+from ginn.problems import validate_spec
+
+
+@pytest.mark.parametrize("n, k", [(4, 1), (16, 1), (16, 2), (64, 2), (33, 3)])
+def test_every_draw_is_stratified_along_each_axis(n, k):
+    """Each coordinate of every draw holds one code in each of the n equal strata of the span."""
+    cfg = LatentConfig(n_shapes=n, dim=k, low=-1.0, high=2.0)
+    lo, hi = lattice_span(cfg)
+    g = torch.Generator().manual_seed(3)
+    for _ in range(20):
+        Z = lattice_latents(cfg, g, dtype=torch.float64)
+        assert Z.shape == (n, k)
+        cell = torch.floor((Z - lo) / (hi - lo) * n).long()
+        for a in range(k):
+            assert sorted(cell[:, a].tolist()) == list(range(n))
+
+
+def test_draws_cover_the_span_uniformly_and_the_span_holds_z_with_half_a_cell_each_side():
+    cfg = LatentConfig(n_shapes=4, dim=1, low=-1.0, high=1.0)
+    lo, hi = lattice_span(cfg)
+    assert (lo, hi) == pytest.approx((-1 - 1 / 3, 1 + 1 / 3))  # half the reported spacing 2/3
+    g = torch.Generator().manual_seed(0)
+    z = torch.cat([lattice_latents(cfg, g, dtype=torch.float64)[:, 0] for _ in range(4000)]).numpy()
+    u = np.sort((z - lo) / (hi - lo))
+    ks = np.max(np.abs(u - (np.arange(1, len(u) + 1) - 0.5) / len(u)))
+    assert ks < 0.02  # the empirical distribution is uniform on the span (16000 codes)
+    # the lattice shifted by half a cell is the reported set
+    half = lo + (hi - lo) * unit_lattice(4, 1, torch.tensor([0.5 / 4]))[:, 0]
+    assert half.tolist() == pytest.approx([-1.0, -1 / 3, 1 / 3, 1.0])
+
+
+def test_lattice_spreads_codes_in_two_dimensions():
+    """The generator maximises the smallest distance on the torus: no two codes of 16 closer than a
+    Latin hypercube on a diagonal would put them (1/16 * sqrt 2)."""
+    assert lattice_generator(16, 1) == (1,)
+    g = lattice_generator(16, 2)
+    assert math.gcd(g[1], 16) == 1 and g[1] not in (1, 15)
+    P = unit_lattice(16, 2, torch.zeros(2))
+    d = (P[:, None] - P[None]).abs()
+    d = torch.minimum(d, 1 - d).norm(dim=-1) + torch.eye(16) * 9
+    assert float(d.min()) > 1.5 / 16
+
+
+def test_step_latents_by_draw():
+    g = torch.Generator().manual_seed(0)
+    rep = torch.linspace(-1, 1, 4)[:, None]
+    assert step_latents(LatentConfig(n_shapes=4, draw="fixed"), g, rep) is rep
+    assert step_latents(LatentConfig(n_shapes=1, draw="lattice"), g, None) is None
+    u = step_latents(LatentConfig(n_shapes=4, draw="uniform"), g, rep)
+    assert u.shape == (4, 1) and float(u.abs().max()) <= 1
+
+
+def test_heldout_codes_are_the_stratum_centres_in_one_dimension():
+    h = heldout_latents(LatentConfig(n_shapes=4), 8, dtype=torch.float64)[:, 0]
+    assert h.tolist() == pytest.approx([-0.875, -0.625, -0.375, -0.125, 0.125, 0.375, 0.625, 0.875])
+    h2 = heldout_latents(LatentConfig(n_shapes=4, dim=2, low=0.0, high=1.0), 16, dtype=torch.float64)
+    assert float(h2.min()) > 0 and float(h2.max()) < 1
+
+
+def test_old_latents_random_setting_reads_as_its_draw():
+    assert build_config({"latents": {"random": True}}).latents.draw == "uniform"
+    assert build_config({"latents": {"random": False}}).latents.draw == "fixed"
+
+
+# --- the feasible share of Z on a field with a known answer -------------------------------------
+
+SPEC = {"name": "growing-bar", "geometry": {
+    "dim": 2, "domain": {"lo": [-1, -1], "hi": [1, 1]},
+    "design_region": {"type": "rectangle", "lo": [-0.5, -0.2], "hi": [0.1, 0.2]},
+    "interfaces": [{"type": "segment", "a": [-0.5, -0.1], "b": [-0.5, 0.1], "normal": [-1, 0]}]},
+    "tolerances": {"volume_outside": 1.0e-6}}
+
+
+def bar(x, z):
+    """A bar [-0.5, -0.5 + w] x [-0.1, 0.1] (its SDF) with w = 0.45 + 0.35 z: inside E (which ends at
+    x = 0.1) while w <= 0.6, i.e. z <= 3 / 7."""
+    w = 0.45 + 0.35 * z[:, 0]
+    c = torch.stack([-0.5 + 0.5 * w, torch.zeros_like(w)], -1)
+    h = torch.stack([0.5 * w, torch.full_like(w, 0.1)], -1)
+    q = (x - c).abs() - h
+    return q.clamp_min(0).norm(dim=-1) + q.max(-1).values.clamp_max(0)
+
+
+def test_feasible_share_of_z_matches_the_analytic_interval():
+    problem = validate_spec(SPEC).build()
+    judge = LatentJudge(problem, 256)
+    codes = heldout_latents(LatentConfig(n_shapes=2), 64, dtype=torch.float64)
+    survey = survey_latents(bar, codes, judge)
+    s = survey.summary
+    z_star = 3 / 7
+    expected = int(((codes[:, 0] <= z_star)).sum())
+    cell = 2 / 256 / 0.35  # a grid cell of bar length, in latent units
+    near = int(((codes[:, 0] - z_star).abs() <= cell).sum())
+    assert abs(s.feasible - expected) <= near and s.shapes == 64
+    ok = [not v for v in s.violations]
+    assert all(ok[i] for i in range(64) if float(codes[i, 0]) < z_star - cell)
+    assert not any(ok[i] for i in range(64) if float(codes[i, 0]) > z_star + cell)
+    z, ratio, bad = s.worst_latent()
+    assert z == pytest.approx([float(codes[-1, 0])]) and "volume_outside" in bad and ratio > 1
+    # the bar grows at 0.35 per unit latent: its boundary moves at most that much (chamfer <= shift)
+    sm = survey.smoothness
+    assert sm["path_codes"] == 64 and sm["topology_changes"] == 0
+    assert 0.05 < sm["change_rate_mean"] <= sm["change_rate_max"] < 0.35 * 1.1
+
+
+def test_axis_paths_cross_the_centre():
+    P = axis_paths(-1.0, 1.0, 3, 5)
+    assert len(P) == 3 and P[1][:, 1].tolist() == [-1.0, -0.5, 0.0, 0.5, 1.0]
+    assert P[1][:, 0].tolist() == [0.0] * 5 and P[1][:, 2].tolist() == [0.0] * 5
