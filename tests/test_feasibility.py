@@ -7,7 +7,7 @@ import pytest
 import torch
 
 from ginn import runs
-from ginn.config import build_config
+from ginn.config import HELDOUT_LATENTS, build_config
 from ginn.constraints import Violation
 from ginn.eval.feasibility import FEASIBILITY_METRICS, check_feasibility, format_feasibility, ratios, summarize, violations
 from ginn.eval.results import FeasibilitySummary
@@ -195,13 +195,17 @@ def test_training_logs_the_checks_and_leaves_the_weights_alone(tmp_path):
     over = {"training": {"iterations": 40, "log_every": 10, "feasibility_checks": 4, "keep_most_feasible": False},
             "latents": {"n_shapes": 2},
             "model": {"hidden": [16, 16]}, "sampling": {"n_domain": 128, "n_interface": 64},
-            "losses": {"connectedness": {"weight": 0}}}
+            "losses": {"connectedness": {"weight": 0}}, "balancing": {"method": "weighted"}}
     spec, cfg = runs.resolve("obstacle", "demo", over)
     out = runs.train(spec, cfg, tmp_path / "a", progress=False, results=False)
     events = [json.loads(x) for x in (tmp_path / "a" / "metrics.jsonl").read_text().splitlines()]
     checks = [e for e in events if e.get("event") == "feasibility"]
     assert [e["step"] for e in checks] == [10, 20, 30, 40]  # events: completed iterations
     assert all(e["shapes"] == 2 and 0 <= e["feasible"] <= 2 for e in checks)
+    # the held-out codes of the latent set are judged too, and the worst of them named
+    held = HELDOUT_LATENTS["check"][2]
+    assert all(e["heldout"]["shapes"] == held and 0 <= e["heldout"]["feasible"] <= held for e in checks)
+    assert all(-1 <= e["heldout"]["worst_latent"][0] <= 1 for e in checks)
     json.dumps(checks, allow_nan=False)  # strict JSON, also for empty shapes
     spec, off = runs.resolve("obstacle", "demo", {**over, "training": {**over["training"], "feasibility_checks": 0}})
     ref = runs.train(spec, off, tmp_path / "b", progress=False, results=False)

@@ -3,8 +3,9 @@
 The page embeds plotly's JavaScript, so it opens without a network. A slider walks through the
 latent space: the trained latents plus ``steps`` evenly spaced values between the smallest and the
 largest (1D latents; a trained one is marked ``trained`` in the slider's label), or an
-``n x n`` grid over the plane through the trained latents' mean spanned by their two principal
-directions (two sliders; ``n = ceil(sqrt(steps))``). For each value the page shows
+``n x n`` grid (two sliders; ``n = ceil(sqrt(steps))``) over the first two axes of the latent set
+when its box is given, else over the plane through the trained latents' mean spanned by their two
+principal directions. For each value the page shows
 
 * 2D: the filled shape over the domain, the design region's outline, the obstacles (grey) and the
   interfaces with their prescribed normals; below, every trained shape's outline superposed
@@ -13,7 +14,9 @@ directions (two sliders; ``n = ceil(sqrt(steps))``). For each value the page sho
   (Plateau's problem: also the reference minimal surface, translucent);
 
 and beside it the shape's feasibility verdict (``ginn.eval.feasibility``) with its CD1, volume
-outside E and number of pieces, measured on the same grid the picture comes from.
+outside E and number of pieces: with a ``judge`` (what shape runs pass: ``ginn eval``'s,
+:class:`ginn.eval.latent_space.LatentJudge`) the verdict ``ginn eval`` gives that code, else an
+estimate on the picture's own grid, marked as such.
 
 The URL fragment ``#step=K`` (or ``#step=I,J`` for a latent plane) opens the page at that slider
 position.
