@@ -793,6 +793,36 @@ def test_each_shape_keeps_its_own_build_schedule():
     assert restored.interval.tolist() == [20, 5] and restored.last_full.tolist() == [50, 55]
 
 
+def test_moving_codes_are_held_between_builds_and_do_not_back_off():
+    """Codes that move at every call (a lattice draw): each shape is judged at the code of its last
+    build until its next one (the loss evaluates the field only there), and once the codes are seen
+    to move a shape found whole is built again after ``every`` calls (a new code is a new shape);
+    the first build cannot know and backs off as for fixed codes."""
+    one, two = blobs([[0.0, 0.0]], 0.3), blobs([[-0.5, 0.0], [0.5, 0.0]], 0.25)
+    seen: list[float] = []
+
+    def f(x, z):
+        seen.extend(z[:, 0].tolist())
+        return torch.where(z[:, 0] < 0.5, one(x), two(x))
+
+    loss_fn = ConnectednessLoss(BOX2, None, ConnectednessConfig(every=5), dtype=DT, options=TIGHT)
+    built: list[list[int]] = [[], []]
+    codes = torch.zeros(2, 1, dtype=DT)
+    for call in range(30):
+        z = torch.tensor([[0.1 + 0.01 * call], [0.6 + 0.01 * call]], dtype=DT)
+        seen.clear()
+        loss_fn(f, z)
+        for k in (0, 1):
+            if loss_fn.last_full[k] == call:
+                built[k].append(call)
+                codes[k] = z[k]
+        assert torch.equal(loss_fn._latents, codes)  # each shape at the code of its last build
+        if loss_fn.last_info["update"] == "warm":
+            assert set(seen) <= set(codes[:, 0].tolist())
+    assert built == [[0, 10, 15, 20, 25], [0, 5, 10, 15, 20, 25]]
+    assert loss_fn.interval.tolist() == [5, 5]
+
+
 def test_a_saddle_the_warm_update_loses_is_dropped_until_the_scheduled_build():
     """Both shapes two disks, penalised saddles; shape 1 then becomes one disk at the origin (its
     saddle is now a minimum: the warm update cannot re-converge it). Its weight goes to 0 while

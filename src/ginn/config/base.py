@@ -9,7 +9,7 @@ from typing import Literal
 import torch
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
-__all__ = ["Strict", "LossTerm", "DTYPES", "STRAIN_CLIP", "RESOLUTION", "HELDOUT_LATENTS", "default_resolution"]
+__all__ = ["Strict", "LossTerm", "DTYPES", "STRAIN_CLIP", "RESOLUTION", "HELDOUT_LATENTS", "HELDOUT_PER_SHAPE", "default_resolution"]
 
 #: Names of the floating-point types a run may train in (``training.dtype``).
 DTYPES = {"float32": torch.float32, "float64": torch.float64}
@@ -28,6 +28,11 @@ RESOLUTION = {"eval": {2: 512, 3: 128}, "output": {2: 256, 3: 128}, "figure": {2
 #: dimension: ``check`` in the feasibility checks during training, ``eval`` in ``ginn eval``
 #: (:func:`ginn.models.latents.heldout_latents`).
 HELDOUT_LATENTS = {"eval": {2: 256, 3: 32}, "check": {2: 16, 3: 4}}
+
+#: The checks during training judge at least this many held-out codes per reported shape (the
+#: shapes a model spreads over its latent set change branch in bands of about a reported spacing or
+#: less, which a coarser set steps over).
+HELDOUT_PER_SHAPE = 2
 
 
 def default_resolution(purpose: Literal["eval", "output", "figure", "check"], dim: int) -> int:

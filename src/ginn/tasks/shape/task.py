@@ -17,7 +17,7 @@ from collections.abc import Callable, Sequence
 import torch
 from torch import Tensor, nn
 
-from ...config import HELDOUT_LATENTS, LossTerm, RunConfig, default_resolution
+from ...config import HELDOUT_LATENTS, HELDOUT_PER_SHAPE, LossTerm, RunConfig, default_resolution
 from ...constraints import BUILTIN_SETS, Batch, Constraint, SampleSet, Setting, Verdict, shape_constraints, verdicts_of
 from ...errors import ConfigError, SpecError
 from ...eval.feasibility import FeasibilityCheck
@@ -187,8 +187,9 @@ class ShapeTask(Task):
         """The coarse-grid check of the problem's tolerances (``RESOLUTION['check']``), with the
         definitions of ``ginn eval``, built once per task."""
         if self._check is None:
+            n = None if self.Z is None else max(HELDOUT_LATENTS["check"][self.d], HELDOUT_PER_SHAPE * self.Z.shape[0])
             self._check = FeasibilityCheck(self.problem, default_resolution("check", self.d), seed=self.cfg.seed,
-                                           verdicts=self.verdicts(), heldout=self.heldout("check"))
+                                           verdicts=self.verdicts(), heldout=self.heldout("check", n))
         return self._check
 
     def heldout(self, purpose: str = "eval", n: int | None = None) -> Tensor | None:
