@@ -119,3 +119,21 @@ def test_axis_paths_cross_the_centre():
     P = axis_paths(-1.0, 1.0, 3, 5)
     assert len(P) == 3 and P[1][:, 1].tolist() == [-1.0, -0.5, 0.0, 0.5, 1.0]
     assert P[1][:, 0].tolist() == [0.0] * 5 and P[1][:, 2].tolist() == [0.0] * 5
+
+
+def test_the_judge_of_any_code_gives_the_verdict_of_ginn_eval():
+    """``ginn export --latent`` and ``ginn view`` judge a code with :class:`LatentJudge`: at the
+    reported codes its metrics and verdicts are those of ``ginn eval`` (``evaluate_shapes``)."""
+    from ginn.eval.shapes import evaluate_shapes
+
+    problem = validate_spec(SPEC).build()
+    Z = torch.tensor([[-0.5], [0.2], [0.5], [0.9]], dtype=torch.float64)
+    ev = evaluate_shapes(bar, Z, problem, 256)
+    judged = LatentJudge(problem, 256).latents(bar, Z)
+    assert [sorted(v) for v in judged.violations] == [sorted(v) for v in ev.feasibility.violations]
+    assert judged.feasible == 2 and [bool(v) for v in judged.violations] == [False, False, True, True]
+    one = LatentJudge(problem, 256)
+    for i, m in enumerate(ev.shapes):
+        mine = one.shape(bar, Z[i])[0]
+        for k in ("interface_cd1", "volume_outside_off_interfaces", "b0_in_design_region", "connected_interfaces_share"):
+            assert mine.get(k) == pytest.approx(m.get(k), rel=1e-12, abs=1e-15), (i, k)
