@@ -67,15 +67,21 @@ def test_train_eval_export_plot_resume_round_trip(tmp_path, capsys):
         assert (run / f).exists(), f
     assert json.loads((run / "status.json").read_text())["status"] == "completed"
     assert len(list((run / "shapes").glob("*.png"))) == 2 and (run / "figures" / "loss_curves.png").exists()
-    code, out, _ = run_cli(["eval", str(run), "--resolution", "64"], capsys)
-    assert code == 0
+    code, out, _ = run_cli(["eval", str(run), "--resolution", "64", "--heldout", "8"], capsys)
+    assert code == 0 and "held-out latents: " in out and " of 8 feasible" in out
     m = json.loads((run / "metrics.json").read_text())
     assert m["problem"] == "obstacle" and m["n_shapes"] == 2 and len(m["shapes"]) == 2
+    held = m["feasibility"]["heldout"]
+    assert held["shapes"] == 8 and len(held["latents"]) == 8 and len(held["violations"]) == 8
+    assert m["latent_space"]["path_codes"] == 8 and m["latent_space"]["resolution"] == 64
     assert set(m["mean"]) >= {"b0", "volume_outside", "interface_cd1", "connected_interfaces_share", "surface_strain"}
     code, out, _ = run_cli(["eval", str(run), str(run), "--table", "--resolution", "48"], capsys)
     assert code == 0 and out.count("|") > 10
     code, out, _ = run_cli(["export", str(run), "--latent", "0.5", "--resolution", "48", "--out", str(tmp_path / "ex")], capsys)
     assert code == 0 and list((tmp_path / "ex").glob("*z0.5*.svg"))
+    verdicts = json.loads((tmp_path / "ex" / "verdicts.json").read_text())
+    assert verdicts["shapes"][0]["latent"] == [0.5] and verdicts["shapes"][0]["text"] in out
+    assert "judged as ginn eval judges them" in out
     code, out, err = run_cli(["export", str(run), "--latent", "0.5", "0.1"], capsys)
     assert code == 2 and "latent" in err
     code, out, _ = run_cli(["plot", str(run), "--resolution", "48"], capsys)

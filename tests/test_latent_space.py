@@ -137,3 +137,12 @@ def test_the_judge_of_any_code_gives_the_verdict_of_ginn_eval():
         mine = one.shape(bar, Z[i])[0]
         for k in ("interface_cd1", "volume_outside_off_interfaces", "b0_in_design_region", "connected_interfaces_share"):
             assert mine.get(k) == pytest.approx(m.get(k), rel=1e-12, abs=1e-15), (i, k)
+
+
+def test_explorer_spans_the_latent_box_in_two_dimensions():
+    from ginn.viz.explorer import explorer_latents
+
+    lat = explorer_latents(torch.rand(5, 3), 16, box=(-1.0, 1.0))
+    assert lat.grid == (4, 4) and len(lat.codes) == 16
+    assert lat.codes[0].tolist() == [-1.0, -1.0, 0.0] and lat.codes[-1].tolist() == [1.0, 1.0, 0.0]
+    assert lat.codes[1].tolist() == pytest.approx([-1.0, -1 / 3, 0.0])
