@@ -29,3 +29,14 @@ def _eager_kernels(request, monkeypatch):
     from ginn.train import callbacks
 
     monkeypatch.setattr(callbacks.CompileKernels, "on_build", lambda self, trainer: None)
+
+
+@pytest.fixture
+def few_heldout_checks(monkeypatch):
+    """In-training checks that judge two held-out codes of Z (the default judges
+    ``max(16, 2 N)`` in 2D, a grid evaluation each): for the tests of what the checks do to a
+    run (multipliers, resume, logs), not of how well they cover Z (tests/test_feasibility.py)."""
+    from ginn.tasks.shape import task
+
+    monkeypatch.setitem(task.HELDOUT_LATENTS, "check", {2: 2, 3: 2})
+    monkeypatch.setattr(task, "HELDOUT_PER_SHAPE", 1)

@@ -59,7 +59,7 @@ def test_problems_lists_builtins(capsys):
 
 
 @pytest.mark.long
-def test_train_eval_export_plot_resume_round_trip(tmp_path, capsys):
+def test_train_eval_export_plot_resume_round_trip(tmp_path, capsys, few_heldout_checks):
     run = tmp_path / "run"
     code, out, _ = run_cli(["train", "obstacle", "--preset", "demo", "--iterations", "3", "--out", str(run), *TINY], capsys)
     assert code == 0
@@ -75,7 +75,7 @@ def test_train_eval_export_plot_resume_round_trip(tmp_path, capsys):
     assert held["shapes"] == 8 and len(held["latents"]) == 8 and len(held["violations"]) == 8
     assert m["latent_space"]["path_codes"] == 8 and m["latent_space"]["resolution"] == 64
     assert set(m["mean"]) >= {"b0", "volume_outside", "interface_cd1", "connected_interfaces_share", "surface_strain"}
-    code, out, _ = run_cli(["eval", str(run), str(run), "--table", "--resolution", "48"], capsys)
+    code, out, _ = run_cli(["eval", str(run), str(run), "--table", "--resolution", "48", "--heldout", "4"], capsys)
     assert code == 0 and out.count("|") > 10
     code, out, _ = run_cli(["export", str(run), "--latent", "0.5", "--resolution", "48", "--out", str(tmp_path / "ex")], capsys)
     assert code == 0 and list((tmp_path / "ex").glob("*z0.5*.svg"))

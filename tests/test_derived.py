@@ -134,7 +134,7 @@ def _scaled_problem(k: float) -> dict:
 
 
 @pytest.mark.long
-def test_a_problem_and_its_scaled_copy_train_alike():
+def test_a_problem_and_its_scaled_copy_train_alike(few_heldout_checks):
     """With the derived settings a problem drawn 10 times larger trains the same network: the
     losses are equal and the inner weights follow the same path (up to rounding; in float64, as
     the surface samples outside E are a discrete choice that float32 rounding can flip)."""

@@ -165,7 +165,7 @@ def test_topology_targets_enter_the_verdict(obstacle):
         {"value": {"holes": 1}, "bound": {"holes": 2}}
 
 
-def test_checks_raise_the_multipliers_they_log(tmp_path):
+def test_checks_raise_the_multipliers_they_log(tmp_path, few_heldout_checks):
     """``balancing.method: feasibility``: every logged multiplier is its weight times the factors
     the checks logged for its constraint."""
     over = {"training": {"iterations": 48, "log_every": 1, "feasibility_checks": 8},

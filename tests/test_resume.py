@@ -90,7 +90,7 @@ CASES = {
 
 @pytest.mark.long
 @pytest.mark.parametrize("case", list(CASES))
-def test_resume_is_exact_for_every_task_kind(case, tmp_path):
+def test_resume_is_exact_for_every_task_kind(case, tmp_path, few_heldout_checks):
     problem, preset, sets = CASES[case]
     spec, cfg = runs.resolve(problem, preset, {"training": {"iterations": 16, "checkpoint_every": 5}}, sets=sets)
     if problem == "obstacle":  # the codes drawn at each step are part of what resumes exactly
@@ -152,7 +152,7 @@ def test_sigkill_at_random_iterations_resumes_bitwise(tmp_path, capsys):
         assert not (out / "shapes").exists()  # --no-results is remembered by the resume
 
 
-def test_metrics_cut_back_to_the_checkpoint_and_partial_line_dropped(tmp_path):
+def test_metrics_cut_back_to_the_checkpoint_and_partial_line_dropped(tmp_path, few_heldout_checks):
     """A crash after the last checkpoint leaves log lines past it and a half-written last line;
     ``ginn resume`` drops both (with a warning) and logs every iteration exactly once."""
     spec, cfg = runs.resolve("obstacle", "demo", {"training": {"iterations": 12, "checkpoint_every": 5}},
