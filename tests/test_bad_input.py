@@ -72,6 +72,14 @@ CASES = {
     "name read as a boolean": (lambda r, t: (t / "b.yaml").write_text(
         "name: off\ngeometry: {dim: 2, domain: {lo: [0, 0], hi: [1, 1]}}\n") and ["train", t / "b.yaml"],
         "spec field 'name': must be text; YAML read it as False: put the name in quotes"),
+    "domain bounds of 1e200": (lambda r, t: (t / "big.yaml").write_text(
+        "name: a\ngeometry: {dim: 2, domain: {lo: [-1e200, -1e200], hi: [1e200, 1e200]}, "
+        "interfaces: [{type: circle, center: [0, 0], radius: 1e199}]}\n") and ["train", t / "big.yaml"],
+        "spec field 'geometry.domain.lo[0]': must be >= -1000000000000000"),
+    "radius of 1e16": (lambda r, t: (t / "big.yaml").write_text(
+        "name: a\ngeometry: {dim: 2, domain: {lo: [-1, -1], hi: [1, 1]}, "
+        "interfaces: [{type: circle, center: [0, 0], radius: 1e16}]}\n") and ["train", t / "big.yaml"],
+        "radius': must be <= 1000000000000000"),
     "negative tolerance": (lambda r, t: (t / "tol.yaml").write_text(
         "name: a\ngeometry: {dim: 2, domain: {lo: [0, 0], hi: [1, 1]}}\ntolerances: {interface: -1}\n")
         and ["train", t / "tol.yaml"], "tolerances.interface"),

@@ -17,9 +17,13 @@ from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationInf
 from ..errors import SpecError
 from ..geometry import csg
 
-Finite = Annotated[float, Field(allow_inf_nan=False)]
-Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
-NonNegative = Annotated[float, Field(ge=0, allow_inf_nan=False)]
+#: The largest magnitude of a number in a spec: squares of lengths (the derived loss weights
+#: divide by ``s^2``, distances are squared in the losses) stay finite in float32 (3.4e38).
+MAX_MAGNITUDE = 1e15
+
+Finite = Annotated[float, Field(ge=-MAX_MAGNITUDE, le=MAX_MAGNITUDE, allow_inf_nan=False)]
+Positive = Annotated[float, Field(gt=0, le=MAX_MAGNITUDE, allow_inf_nan=False)]
+NonNegative = Annotated[float, Field(ge=0, le=MAX_MAGNITUDE, allow_inf_nan=False)]
 
 
 def spec_dim(info: ValidationInfo) -> int | None:
