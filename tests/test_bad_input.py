@@ -80,6 +80,11 @@ CASES = {
         "name: a\ngeometry: {dim: 2, domain: {lo: [-1, -1], hi: [1, 1]}, "
         "interfaces: [{type: circle, center: [0, 0], radius: 1e16}]}\n") and ["train", t / "big.yaml"],
         "radius': must be <= 1000000000000000"),
+    "a billion shapes": (lambda r, t: ["train", "obstacle", "--set", "latents.n_shapes=1000000000"],
+                         "1000000000 shapes per step (latents.n_shapes)"),
+    "a hidden width of 1e11": (lambda r, t: ["train", "obstacle", "--set", "model.hidden=[100000000000]"],
+                               "model widths [100000000000]"),
+    "view --steps 99999999999": (lambda r, t: ["view", r, "--steps", "99999999999"], "--steps: must be <= 4096"),
     "negative tolerance": (lambda r, t: (t / "tol.yaml").write_text(
         "name: a\ngeometry: {dim: 2, domain: {lo: [0, 0], hi: [1, 1]}}\ntolerances: {interface: -1}\n")
         and ["train", t / "tol.yaml"], "tolerances.interface"),

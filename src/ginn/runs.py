@@ -32,6 +32,7 @@ from .tasks.shape.results import VERDICTS_FILE
 from .train.checkpoint import load_checkpoint, load_weights
 from .train.distributed import DistContext, on_main
 from .train.lock import RunLock
+from .train.memory import check_memory
 from .train.rundir import (
     RUN_RECORDS,
     Status,
@@ -180,6 +181,7 @@ def train(
         cfg = with_overrides(cfg, {"output": {"results": results}})
     if dist is None:
         check_device(cfg.device)
+    check_memory(dist.localize(cfg) if dist is not None else cfg)
     task = make_task(spec, dist.localize(cfg) if dist is not None else cfg)
     locks: list[RunLock] = []  # rank 0 writes, and holds the run's lock from its creation to the end
 
@@ -292,6 +294,7 @@ def _resume_locked(run_dir: Path, state: Status, iterations: int | None, progres
     if dist is None:
         check_device(cfg.device, "--device")
     cfg = dist.localize(cfg) if dist is not None else cfg
+    check_memory(cfg)
     task = make_task(spec, cfg)
     trainer = Trainer(task, cfg, run_dir, progress=progress, dist=dist)
     main_say = say if trainer.is_main else _silent

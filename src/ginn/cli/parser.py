@@ -9,6 +9,9 @@ import sys
 from .sweep_parser import add_sweep_parser
 from .types import count, device, finite
 
+#: the most positions ``ginn view --steps`` draws
+MAX_STEPS = 4096
+
 
 class Parser(argparse.ArgumentParser):
     """An argument parser whose errors are one line ``ginn: error: ...`` and exit status 2."""
@@ -74,7 +77,9 @@ def build_parser() -> argparse.ArgumentParser:
     v = sub.add_parser("view", help="write the latent-space explorer of a run (one self-contained HTML file)")
     v.add_argument("run_dir")
     v.add_argument("--out", help="the HTML file (default RUN/figures/explorer.html)")
-    v.add_argument("--steps", type=count(1), default=64, help="evenly spaced latent values besides the trained ones (default 64)")
+    v.add_argument("--steps", type=count(1, MAX_STEPS), default=64,
+                   help=f"evenly spaced latent values besides the trained ones (default 64, at most {MAX_STEPS}: each is a "
+                        "picture in the page, judged as ginn eval judges it)")
 
     add_sweep_parser(sub)
     return p

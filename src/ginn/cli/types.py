@@ -7,8 +7,9 @@ import math
 import re
 
 
-def count(minimum: int):
-    """An argparse type: an integer >= ``minimum`` (a bad value is one line naming the flag)."""
+def count(minimum: int, maximum: int | None = None):
+    """An argparse type: an integer >= ``minimum`` (and <= ``maximum``; a bad value is one line
+    naming the flag)."""
     def parse(text: str) -> int:
         try:
             v = int(text)
@@ -16,9 +17,11 @@ def count(minimum: int):
             raise argparse.ArgumentTypeError(f"invalid int value: {text!r}") from None
         if v < minimum:
             raise argparse.ArgumentTypeError(f"must be >= {minimum}, got {v}")
+        if maximum is not None and v > maximum:
+            raise argparse.ArgumentTypeError(f"must be <= {maximum}, got {v}")
         return v
 
-    parse.__name__ = f"integer >= {minimum}"
+    parse.__name__ = f"integer >= {minimum}" if maximum is None else f"integer in [{minimum}, {maximum}]"
     return parse
 
 
