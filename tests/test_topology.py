@@ -793,11 +793,10 @@ def test_each_shape_keeps_its_own_build_schedule():
     assert restored.interval.tolist() == [20, 5] and restored.last_full.tolist() == [50, 55]
 
 
-def test_moving_codes_are_held_between_builds_and_do_not_back_off():
+def test_moving_codes_are_held_between_builds_and_back_off_as_fixed_ones():
     """Codes that move at every call (a lattice draw): each shape is judged at the code of its last
-    build until its next one (the loss evaluates the field only there), and once the codes are seen
-    to move a shape found whole is built again after ``every`` calls (a new code is a new shape);
-    the first build cannot know and backs off as for fixed codes."""
+    build until its next one (the loss evaluates the field only there), and a shape found whole
+    waits twice as long for its next build, up to four times ``every``, as with fixed codes."""
     one, two = blobs([[0.0, 0.0]], 0.3), blobs([[-0.5, 0.0], [0.5, 0.0]], 0.25)
     seen: list[float] = []
 
@@ -819,8 +818,8 @@ def test_moving_codes_are_held_between_builds_and_do_not_back_off():
         assert torch.equal(loss_fn._latents, codes)  # each shape at the code of its last build
         if loss_fn.last_info["update"] == "warm":
             assert set(seen) <= set(codes[:, 0].tolist())
-    assert built == [[0, 10, 15, 20, 25], [0, 5, 10, 15, 20, 25]]
-    assert loss_fn.interval.tolist() == [5, 5]
+    assert built == [[0, 10], [0, 5, 10, 15, 20, 25]]  # whole: 10 then 20 calls; in two pieces: every 5
+    assert loss_fn.interval.tolist() == [20, 5]
 
 
 def test_a_saddle_the_warm_update_loses_is_dropped_until_the_scheduled_build():

@@ -392,12 +392,11 @@ class ConnectednessLoss(ConnectednessLossBase):
         else:  # builds only at every `every`-th call: the shapes due then are built in one batch
             on_grid = self.step % int(self.config.every) == 0
             rebuild = (self.step - self.last_full >= self.interval) & on_grid
-        moving = Zd is not None and self._latents is not None and not torch.equal(Zd, self._latents)
         held = self._hold(Zd, rebuild)
         warm_failed = self._warm_update(field, held, rebuild) if not rebuild.all() else 0
         if rebuild.any():
             self._build(field, held, None if rebuild.all() else np.nonzero(rebuild)[0])
-            self._next_interval(rebuild, backoff=not moving)
+            self._next_interval(rebuild)
         reason = "full" if rebuild.all() else "partial" if rebuild.any() else "warm"
         loss = self._loss(field, None if held is None else held.to(Z.dtype), S)
         pts = self.points
@@ -429,7 +428,7 @@ class ConnectednessLoss(ConnectednessLossBase):
     #: next one, up to this many times ``config.every``
     MAX_BACKOFF = 4
 
-    def _next_interval(self, built: np.ndarray, backoff: bool = True) -> None:
+    def _next_interval(self, built: np.ndarray) -> None:
         """Calls until the next scheduled full build of each shape just built (``built (S,)``).
         Between full builds only the penalised saddles are followed, so a build that finds none on
         a shape (in one piece, the margin met) leaves warm updates nothing to do there, and what it
@@ -438,17 +437,18 @@ class ConnectednessLoss(ConnectednessLossBase):
         ``config.every`` at the first build that penalises anything on it. Each shape keeps its own
         schedule, so one shape with a neck to widen does not hold the others at every build.
 
-        Without ``backoff`` (the step's codes move: each build judges a new code, so a shape
-        found whole says nothing of the next) every interval stays ``config.every``: on the
-        obstacle (16 shapes, seed 1) the backoff left a band of 14 of 256 held-out codes in two
-        pieces, without it 241 of 256 codes were feasible instead of 235."""
+        Codes that move (a lattice draw) back off alike: the shape is held at the code of its
+        build until the next (:meth:`_hold`). Building every shape every ``config.every`` calls
+        instead made the obstacle's training (16 shapes, seed 1, 1 thread beside one other
+        training) take 549 s instead of 418 s and left 252 of 256 held-out codes feasible against
+        256 of 256 with the backoff (``docs/results.md``, "The latent set")."""
         assert self.points is not None and self.penalty is not None
         S = len(built)
         busy = np.zeros(S, dtype=bool)
         busy[self.points.shape.cpu().numpy()[self.penalty > 0]] = True
         busy[self._extra[1].cpu().numpy()] = True
         every = int(self.config.every)
-        grown = np.minimum(2 * self.interval, self.MAX_BACKOFF * every) if backoff else np.full_like(self.interval, every)
+        grown = np.minimum(2 * self.interval, self.MAX_BACKOFF * every)
         self.interval = np.where(built, np.where(busy, every, grown), self.interval)
         self.last_full = np.where(built, self.step, self.last_full)
 
