@@ -85,6 +85,12 @@ CASES = {
     "a hidden width of 1e11": (lambda r, t: ["train", "obstacle", "--set", "model.hidden=[100000000000]"],
                                "model widths [100000000000]"),
     "view --steps 99999999999": (lambda r, t: ["view", r, "--steps", "99999999999"], "--steps: must be <= 4096"),
+    "spec name of 300 characters": (lambda r, t: (t / "n.yaml").write_text(
+        "name: " + "a" * 300 + "\ngeometry: {dim: 2, domain: {lo: [-1, -1], hi: [1, 1]}, "
+        "interfaces: [{type: circle, center: [0, 0], radius: 0.5}]}\n") and ["train", t / "n.yaml"],
+        "spec field 'name': string should have at most 200 characters"),
+    "--out name of 300 characters": (lambda r, t: ["train", "obstacle", "--out", t / ("a" * 300), *TINY],
+                                     "cannot create the run directory: a name in the path is longer than the file system allows"),
     "negative tolerance": (lambda r, t: (t / "tol.yaml").write_text(
         "name: a\ngeometry: {dim: 2, domain: {lo: [0, 0], hi: [1, 1]}}\ntolerances: {interface: -1}\n")
         and ["train", t / "tol.yaml"], "tolerances.interface"),

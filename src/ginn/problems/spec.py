@@ -162,7 +162,8 @@ class ProblemSpec(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    name: Annotated[str, Field(min_length=1, pattern=r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")]
+    # the run directory is `<name>-<timestamp>-<n>`: 200 characters keep it within the 255 bytes of a file name
+    name: Annotated[str, Field(min_length=1, max_length=200, pattern=r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")]
     kind: Literal[TASK_KINDS] = "shape"  # type: ignore[valid-type]
     description: str = ""
     reference: Literal["minimal-surface"] | None = Field(

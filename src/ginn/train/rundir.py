@@ -63,6 +63,9 @@ def io_error(e: OSError, path: str | Path, doing: str = "write") -> GinnError:
     if e.errno in (errno.EACCES, errno.EPERM, errno.EROFS):
         why = "read-only file system" if e.errno == errno.EROFS else "permission denied"
         return GinnError(f"{path}: cannot {doing} ({why})")
+    if e.errno == errno.ENAMETOOLONG:
+        return GinnError(f"{path}: cannot {doing}: a name in the path is longer than the file system allows "
+                         "(255 bytes on most)")
     return GinnError(f"{path}: cannot {doing} ({e.strerror or type(e).__name__})")
 
 
@@ -100,7 +103,8 @@ def new_run_dir(problem_name: str, out: str | Path | None = None, root: str | Pa
             return p, RunLock(p).acquire()
         raise GinnError(f"{root}: could not create a new run directory for {problem_name}")
     except OSError as e:
-        raise io_error(e, out if out is not None else root, "create a run directory in") from None
+        raise io_error(e, out if out is not None else root,
+                       "create the run directory" if out is not None else "create a run directory in it") from None
 
 
 def _pid_alive(pid: int) -> bool:
