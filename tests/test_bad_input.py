@@ -91,6 +91,13 @@ CASES = {
         "spec field 'name': string should have at most 200 characters"),
     "--out name of 300 characters": (lambda r, t: ["train", "obstacle", "--out", t / ("a" * 300), *TINY],
                                      "cannot create the run directory: a name in the path is longer than the file system allows"),
+    "sweep storage not an SQLite file": (lambda r, t: (t / "s.yaml").write_text("training.lr: {type: float, low: 1.0e-4, high: 1.0e-2}\n")
+                                         and (t / "notes.txt").write_text("hello")
+                                         and ["sweep", "obstacle", "--space", t / "s.yaml", "--trials", "1",
+                                              "--storage", f"sqlite:///{t / 'notes.txt'}"], "notes.txt is not an SQLite database"),
+    "sweep storage is a directory": (lambda r, t: (t / "s.yaml").write_text("training.lr: {type: float, low: 1.0e-4, high: 1.0e-2}\n")
+                                     and ["sweep", "obstacle", "--space", t / "s.yaml", "--trials", "1",
+                                          "--storage", f"sqlite:///{t}"], "is a directory, not an SQLite database file"),
     "negative tolerance": (lambda r, t: (t / "tol.yaml").write_text(
         "name: a\ngeometry: {dim: 2, domain: {lo: [0, 0], hi: [1, 1]}}\ntolerances: {interface: -1}\n")
         and ["train", t / "tol.yaml"], "tolerances.interface"),
@@ -232,6 +239,7 @@ def test_bad_input_is_one_line_and_exit_2(case, run_dir, tmp_path, capsys, monke
     assert len(lines) == 1 and lines[0].startswith("ginn: error:"), (case, err)
     assert "Traceback" not in err
     assert needle in lines[0], (case, lines[0])
+    assert not list(tmp_path.glob("*.lock")), case  # a refused sweep leaves no lock beside its storage
 
 
 # --- read-only directories and a full disk ------------------------------------------------------------

@@ -40,6 +40,21 @@ def default_storage(out: Path) -> str:
     return f"sqlite:///{(out / 'study.db').resolve()}"
 
 
+def _sqlite_target(storage: str) -> str:
+    """The database file of an ``sqlite:///`` URL, checked before its lock file is made beside it:
+    its folder exists, and the file is new or an SQLite database (else one line, no lock left)."""
+    db = Path(storage[len("sqlite:///"):])
+    if not db.parent.is_dir():
+        raise ConfigError(f"--storage {storage}: the folder {db.parent} does not exist")
+    if db.is_dir():
+        raise ConfigError(f"--storage {storage}: {db} is a directory, not an SQLite database file")
+    if db.is_file() and db.stat().st_size > 0:
+        with open(db, "rb") as fh:
+            if fh.read(16) != b"SQLite format 3\x00":
+                raise ConfigError(f"--storage {storage}: {db} is not an SQLite database")
+    return str(db)
+
+
 @contextlib.contextmanager
 def budget_lock(storage: str, study: str):
     """A lock shared by every worker of one study (see the module docstring).
@@ -49,7 +64,7 @@ def budget_lock(storage: str, study: str):
     exceed ``--trials`` by up to the number of workers minus one).
     """
     if storage.startswith("sqlite:///"):
-        path = Path(storage[len("sqlite:///"):] + ".lock")
+        path = Path(_sqlite_target(storage) + ".lock")
         with open(path, "a") as fh:
             fcntl.flock(fh, fcntl.LOCK_EX)
             try:
