@@ -146,3 +146,24 @@ def test_explorer_spans_the_latent_box_in_two_dimensions():
     assert lat.grid == (4, 4) and len(lat.codes) == 16
     assert lat.codes[0].tolist() == [-1.0, -1.0, 0.0] and lat.codes[-1].tolist() == [1.0, 1.0, 0.0]
     assert lat.codes[1].tolist() == pytest.approx([-1.0, -1 / 3, 0.0])
+
+
+def test_latent_scale_keeps_the_latent_box_as_many_periods_as_one_axis():
+    """Unset ``model.latent_scale`` resolves to ``(r w)^(1/k - 1)``: 1 in one dimension; in k
+    dimensions each axis spans ``(r w)^(1/k)`` radians of the first layer, so the box holds
+    ``r w`` cells like the interval; a value the user sets stays, and the resolved value is what
+    the run's config records (so a run keeps its scale when the rule changes)."""
+    from ginn import runs
+
+    _, one = runs.resolve("obstacle", None)
+    assert one.model.latent_scale == 1.0
+    for k in (2, 3):
+        _, cfg = runs.resolve("obstacle", None, sets=[f"latents.dim={k}", "latents.low=-0.5", "latents.high=1.5"])
+        w, r = cfg.model.w0_first, 2.0
+        assert cfg.model.latent_scale == pytest.approx((r * w) ** (1.0 / k - 1.0), rel=1e-12)
+        assert (r * w * cfg.model.latent_scale) ** k == pytest.approx(r * w, rel=1e-9)
+        assert build_config(cfg.model_dump()).model.latent_scale == cfg.model.latent_scale
+    _, mlp = runs.resolve("obstacle", None, sets=["latents.dim=2", "model.kind=mlp"])
+    assert mlp.model.latent_scale == pytest.approx(2.0 ** -0.5)
+    _, own = runs.resolve("obstacle", None, sets=["latents.dim=2", "model.latent_scale=0.5"])
+    assert own.model.latent_scale == 0.5

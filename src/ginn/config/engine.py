@@ -28,9 +28,13 @@ class ModelConfig(Strict):
                                json_schema_extra={"kinds": ("wire",)})
     gabor_scale: float = Field(10.0, gt=0, description="WIRE: inverse width of the Gabor window (scale above)",
                                json_schema_extra={"kinds": ("wire",)})
-    latent_scale: float = Field(
-        1.0, gt=0, description="multiply the latent codes by this before they enter the network (for a SIREN: "
-        "the first layer's frequency along the latent axes is omega_0^1 * latent_scale); 1 is the paper's")
+    latent_scale: float | None = Field(
+        None, gt=0, description="multiply the latent codes by this before they enter the network (for a SIREN: "
+        "the first layer's frequency along the latent axes is omega_0^1 * latent_scale); unset: (r w)^(1/k - 1) for "
+        "the latent box of side r = latents.high - latents.low in k = latents.dim dimensions and w = omega_0^1 "
+        "(siren; 1 for the other kinds), written resolved to the run's config.yaml: 1 in one dimension (the "
+        "paper's), and in k dimensions the box spans as many first-layer periods as the interval of one dimension "
+        "(docs/results.md, \"The latent set\")")
     activation: str = Field("tanh", description="activation (mlp, fourier)", json_schema_extra={"kinds": ("mlp", "fourier")})
     beta: float = Field(1.0, gt=0, description="softplus sharpness (resmlp, softplus activations)",
                         json_schema_extra={"kinds": ("resmlp", "mlp", "fourier")})

@@ -14,7 +14,8 @@ from .wire import Wire
 def build_model(cfg: ModelConfig, in_dim: int, latent_dim: int = 0, out_dim: int = 1) -> nn.Module:
     """A freshly initialised neural field ``(n, in_dim), (n, latent_dim) -> (n,)`` from ``cfg``."""
     enc = PeriodicEncoding() if cfg.periodic else None
-    cond = ConcatConditioning(cfg.latent_scale)
+    # unset only in a ModelConfig outside a RunConfig (which resolves it from the latent box)
+    cond = ConcatConditioning(1.0 if cfg.latent_scale is None else cfg.latent_scale)
     if cfg.kind == "siren":
         return Siren(in_dim, cfg.hidden, latent_dim, out_dim, cfg.w0_first, cfg.w0_hidden, encoding=enc, conditioning=cond)
     if cfg.kind == "wire":
