@@ -98,6 +98,10 @@ CASES = {
     "sweep storage is a directory": (lambda r, t: (t / "s.yaml").write_text("training.lr: {type: float, low: 1.0e-4, high: 1.0e-2}\n")
                                      and ["sweep", "obstacle", "--space", t / "s.yaml", "--trials", "1",
                                           "--storage", f"sqlite:///{t}"], "is a directory, not an SQLite database file"),
+    "tolerance read as a boolean": (lambda r, t: (t / "y.yaml").write_text(
+        "name: a\ngeometry: {dim: 2, domain: {lo: [-1, -1], hi: [1, 1]}, interfaces: [{type: circle, center: [0, 0], "
+        "radius: 0.5}]}\ntolerances: {interface: yes}\n") and ["train", t / "y.yaml"],
+        "spec field 'tolerances.interface': must be a number; YAML read it as True"),
     "negative tolerance": (lambda r, t: (t / "tol.yaml").write_text(
         "name: a\ngeometry: {dim: 2, domain: {lo: [0, 0], hi: [1, 1]}}\ntolerances: {interface: -1}\n")
         and ["train", t / "tol.yaml"], "tolerances.interface"),
@@ -389,3 +393,20 @@ def test_bytes_that_are_not_utf8_in_metrics_jsonl_cost_one_line(tmp_path):
     with pytest.warns(UserWarning, match="line 2"):
         assert truncate_metrics(log, 1) == 2  # the damaged line and iteration 1
     assert log.read_text() == '{"step": 0, "total": 1.0}\n'
+
+
+@pytest.mark.long
+def test_fuzz_pass_answers_every_bad_input_with_one_line(capsys):
+    """benchmarks/fuzz.py on 90 generated cases (bad spec fields, bad flags, damaged run files):
+    exit 2 and one line for each bad spec and flag, no traceback anywhere, and ``ginn status``
+    still answering for every damaged run (the script's default is 240 cases)."""
+    import importlib.util
+
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "fuzz.py"
+    spec = importlib.util.spec_from_file_location("fuzz", path)
+    fuzz = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(fuzz)
+    code = fuzz.main(["--n", "90", "--seed", "11"])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert "90 of 90 cases answered as they should (30 spec, 30 flag, 30 run)" in out

@@ -12,7 +12,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, ClassVar
 
-from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationInfo, model_validator
+from pydantic import AfterValidator, BaseModel, BeforeValidator, ConfigDict, Field, ValidationInfo, model_validator
 
 from ..errors import SpecError
 from ..geometry import csg
@@ -21,9 +21,18 @@ from ..geometry import csg
 #: divide by ``s^2``, distances are squared in the losses) stay finite in float32 (3.4e38).
 MAX_MAGNITUDE = 1e15
 
-Finite = Annotated[float, Field(ge=-MAX_MAGNITUDE, le=MAX_MAGNITUDE, allow_inf_nan=False)]
-Positive = Annotated[float, Field(gt=0, le=MAX_MAGNITUDE, allow_inf_nan=False)]
-NonNegative = Annotated[float, Field(ge=0, le=MAX_MAGNITUDE, allow_inf_nan=False)]
+
+
+def _not_a_boolean(v):
+    # YAML reads yes, no, on, off, true as booleans, which pydantic would take for 1 and 0
+    if isinstance(v, bool):
+        raise ValueError(f"must be a number; YAML read it as {v}")
+    return v
+
+
+Finite = Annotated[float, Field(ge=-MAX_MAGNITUDE, le=MAX_MAGNITUDE, allow_inf_nan=False), BeforeValidator(_not_a_boolean)]
+Positive = Annotated[float, Field(gt=0, le=MAX_MAGNITUDE, allow_inf_nan=False), BeforeValidator(_not_a_boolean)]
+NonNegative = Annotated[float, Field(ge=0, le=MAX_MAGNITUDE, allow_inf_nan=False), BeforeValidator(_not_a_boolean)]
 
 
 def spec_dim(info: ValidationInfo) -> int | None:
