@@ -11,19 +11,13 @@ trap 'rm -rf "$tmp"' EXIT
 .venv/bin/python -m pip wheel -q --no-deps -w "$tmp/dist" . >/dev/null
 wheel=$(ls "$tmp"/dist/ginn-*.whl)
 python3 -m venv "$tmp/venv"
-source=()
-if [[ -n ${GINN_TORCH_INDEX:-} ]]; then
-    source=(--index-url "$GINN_TORCH_INDEX")
-else
-    for links in $(.venv/bin/python -m pip config get global.find-links 2>/dev/null || true); do
-        source+=(--find-links "$links")
-    done
-fi
+source scripts/torch-source.sh
+torch_source
 if [[ -x .venv/bin/uv ]]; then
-    .venv/bin/uv pip install -q --python "$tmp/venv/bin/python" "${source[@]}" "$TORCH"
+    .venv/bin/uv pip install -q --python "$tmp/venv/bin/python" "${TORCH_SOURCE[@]}" "$TORCH"
     .venv/bin/uv pip install -q --python "$tmp/venv/bin/python" "$wheel"
 else
-    "$tmp/venv/bin/python" -m pip install -q "${source[@]}" "$TORCH"
+    "$tmp/venv/bin/python" -m pip install -q "${TORCH_SOURCE[@]}" "$TORCH"
     "$tmp/venv/bin/python" -m pip install -q "$wheel"
 fi
 cd "$tmp"

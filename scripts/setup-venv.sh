@@ -12,6 +12,7 @@
 # say) is kept: ginn's own requirement `torch>=2.5` accepts it.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+source scripts/torch-source.sh
 PY=${PYTHON:-python3}
 EXTRAS=${GINN_EXTRAS:-dev}
 TORCH="torch==${GINN_TORCH_VERSION:-2.13.0}"
@@ -28,15 +29,8 @@ with_uv() {
     "${pip[@]}" uv >/dev/null 2>&1 || return 1
     local uv=(.venv/bin/uv pip install -q --compile-bytecode --python .venv/bin/python)
     if ! .venv/bin/python -c "import torch" >/dev/null 2>&1; then
-        local source=()
-        if [[ -n ${GINN_TORCH_INDEX:-} ]]; then
-            source=(--index-url "$GINN_TORCH_INDEX")
-        else
-            for links in $(.venv/bin/python -m pip config get global.find-links 2>/dev/null || true); do
-                source+=(--find-links "$links")
-            done
-        fi
-        "${uv[@]}" "${source[@]}" "$TORCH" || return 1
+        torch_source
+        "${uv[@]}" "${TORCH_SOURCE[@]}" "$TORCH" || return 1
     fi
     "${uv[@]}" -e ".[${EXTRAS}]"
 }
