@@ -107,7 +107,7 @@ def lattice_latents(cfg: LatentConfig, gen: torch.Generator, device=None, dtype=
     """A randomly shifted rank-1 lattice of ``n`` codes (default ``n_shapes``) in ``Z``, ``(n, k)``,
     the shift drawn from ``gen`` (module docstring)."""
     n = cfg.n_shapes if n is None else n
-    shift = torch.rand(cfg.dim, generator=gen, dtype=torch.float64)
+    shift = torch.rand(cfg.dim, generator=gen, dtype=torch.float64, device=gen.device).cpu()
     u = unit_lattice(n, cfg.dim, shift)
     lo, hi = lattice_span(cfg, n)
     return (lo + (hi - lo) * u).to(device=device, dtype=dtype)

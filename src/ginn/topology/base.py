@@ -104,7 +104,10 @@ class GridTopologyLoss(abc.ABC):
         return {"format": self.FORMAT, **self._state()}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
-        """Restore :meth:`state_dict`, of this version or an older one (:meth:`migrate`)."""
+        """Restore :meth:`state_dict`, of this version or an older one (:meth:`migrate`). The
+        state may come from a checkpoint mapped to any device: :meth:`_load` receives it on the
+        host (its arrays become NumPy, its tensors move to :attr:`device` where they are used)."""
+        state = _on_host(state)
         if int(state.get("format", 1)) != self.FORMAT:
             state = self.migrate(state)
         self._load(state)
@@ -141,3 +144,14 @@ class ConnectednessLossBase(GridTopologyLoss):
         region = design_region if config.restrict_to_design_region else None
         super().__init__(domain, region, resolution or config.grid, device, dtype, every=config.every)
         self.config = config
+
+
+def _on_host(value: Any) -> Any:
+    """``value`` with every tensor in it (through dicts, lists and tuples) on the CPU."""
+    if isinstance(value, torch.Tensor):
+        return value.cpu()
+    if isinstance(value, dict):
+        return {k: _on_host(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return type(value)(_on_host(v) for v in value)
+    return value

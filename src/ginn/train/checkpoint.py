@@ -131,7 +131,9 @@ def rng_state(gen: torch.Generator) -> dict[str, Any]:
 
 
 def set_rng_state(state: dict[str, Any], gen: torch.Generator) -> None:
-    torch.set_rng_state(state["torch_cpu"])
-    gen.set_state(state["sampler"])
+    """Restore :func:`rng_state` (each state a byte tensor on the host, wherever the checkpoint was
+    mapped)."""
+    torch.set_rng_state(state["torch_cpu"].cpu())
+    gen.set_state(state["sampler"].cpu())
     if "torch_cuda" in state and torch.cuda.is_available():
-        torch.cuda.set_rng_state_all(state["torch_cuda"])
+        torch.cuda.set_rng_state_all([s.cpu() for s in state["torch_cuda"]])

@@ -82,7 +82,7 @@ class GrayScottTask(Task):
         if self.Z is not None:
             return self.Z
         if lat.draw != "fixed":
-            r = torch.rand(lat.n_shapes, lat.dim, generator=gen, dtype=self.dtype)
+            r = torch.rand(lat.n_shapes, lat.dim, generator=gen, dtype=self.dtype, device=gen.device)
             return (lat.low + (lat.high - lat.low) * r).to(self.device)
         return torch.zeros(1, 0, dtype=self.dtype, device=self.device)
 
@@ -130,7 +130,7 @@ class GrayScottTask(Task):
     def loss_terms(self, model: nn.Module, step: int, active: set[str], gen: torch.Generator) -> dict[str, Tensor]:
         p, gs = self.params, self.params.gs
         Z = self._batch_latents(gen)
-        offset = torch.rand(2, generator=gen, dtype=self.dtype).to(self.device) if p.translate else None
+        offset = torch.rand(2, generator=gen, dtype=self.dtype, device=gen.device).to(self.device) if p.translate else None
         W, G, Lap = self.fields_and_derivatives(model, Z, offset, self.grid_at(step))
         u, v = W[:, 0], W[:, 1]
         uvv = u * v * v

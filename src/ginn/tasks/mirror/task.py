@@ -36,7 +36,7 @@ def parse_mirror_params(params: dict[str, Any] | MirrorParams | ShapeParams | No
 
 def sample_rays(p: MirrorParams, n: int, gen: torch.Generator, device, dtype) -> Tensor:
     """``n`` ray positions in ``[x_min, x_max]``, ``(n,)`` (``p.sampling`` decides how)."""
-    u = torch.rand(n, generator=gen, dtype=dtype).to(device)
+    u = torch.rand(n, generator=gen, dtype=dtype, device=gen.device).to(device)
     if p.sampling == "stratified":
         u = (torch.arange(n, dtype=dtype, device=device) + u) / n
     return p.x_min + (p.x_max - p.x_min) * u
