@@ -414,10 +414,10 @@ def evaluate_with_text(run_dir: str | Path, resolution: int | None = None, devic
 
 
 def export(run_dir: str | Path, latents: list[list[float]] | None = None, resolution: int | None = None,
-           mesh_format: str | None = None, out: str | Path | None = None) -> list[Path]:
+           mesh_format: str | None = None, out: str | Path | None = None, device: str | None = None) -> list[Path]:
     """Meshes (3D) or contours (2D) of the trained latents, or of the given latent values, into
-    ``out`` (default ``RUN/export``)."""
-    run = load_run(run_dir)
+    ``out`` (default ``RUN/export``), evaluated on ``device`` (default: :func:`load_run`'s)."""
+    run = load_run(run_dir, device=device)
     out_dir = Path(out) if out else run.path / "export"
     return run.task.results.export(run.model, latents or None, out_dir, resolution, mesh_format)
 
@@ -433,10 +433,10 @@ def verdict_lines(paths: list[Path]) -> list[str]:
     return []
 
 
-def view(run_dir: str | Path, out: str | Path | None = None, steps: int = 64) -> Path:
+def view(run_dir: str | Path, out: str | Path | None = None, steps: int = 64, device: str | None = None) -> Path:
     """The latent-space explorer of a completed run (``ginn view``): one self-contained HTML file
     (the task's :meth:`~ginn.train.task.Results.view`), ``RUN/figures/explorer.html`` unless
-    ``out`` says otherwise."""
+    ``out`` says otherwise; the pictures are drawn on ``device`` (default: :func:`load_run`'s)."""
     run_dir = Path(run_dir)
     st = read_status(run_dir)
     if st.status not in ("completed", "unknown"):
@@ -446,12 +446,12 @@ def view(run_dir: str | Path, out: str | Path | None = None, steps: int = 64) ->
         raise ConfigError(f"--steps must be at least 1, got {steps}")
     if out is not None and Path(out).resolve().parent == run_dir.resolve() and Path(out).name in RUN_RECORDS:
         raise ConfigError(f"--out {out}: is one of the run's own files; choose another name")
-    run = load_run(run_dir)
+    run = load_run(run_dir, device=device)
     path = Path(out) if out is not None else run.path / "figures" / "explorer.html"
     return run.task.results.view(run.model, path, steps=steps, title=f"{run.spec.name}: {run.path.name}")
 
 
-def plot(run_dir: str | Path, resolution: int | None = None) -> list[Path]:
-    """The figures of a run (``ginn plot``)."""
-    run = load_run(run_dir)
+def plot(run_dir: str | Path, resolution: int | None = None, device: str | None = None) -> list[Path]:
+    """The figures of a run (``ginn plot``), drawn on ``device`` (default: :func:`load_run`'s)."""
+    run = load_run(run_dir, device=device)
     return run.task.results.plot(run.model, run.path, resolution)

@@ -113,7 +113,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
 
 def cmd_export(args: argparse.Namespace) -> int:
     _note_unfinished(args.run_dir)
-    paths = runs.export(Path(args.run_dir), args.latent, args.resolution, args.format, args.out)
+    paths = runs.export(Path(args.run_dir), args.latent, args.resolution, args.format, args.out, device=args.device)
     for p in paths:
         print(p)
     for line in runs.verdict_lines(paths):
@@ -123,13 +123,13 @@ def cmd_export(args: argparse.Namespace) -> int:
 
 def cmd_plot(args: argparse.Namespace) -> int:
     _note_unfinished(args.run_dir)
-    for p in runs.plot(Path(args.run_dir), args.resolution):
+    for p in runs.plot(Path(args.run_dir), args.resolution, device=args.device):
         print(p)
     return 0
 
 
 def cmd_view(args: argparse.Namespace) -> int:
-    print(runs.view(Path(args.run_dir), args.out, args.steps))
+    print(runs.view(Path(args.run_dir), args.out, args.steps, device=args.device))
     return 0
 
 

@@ -69,10 +69,12 @@ def build_parser() -> argparse.ArgumentParser:
     x.add_argument("--resolution", type=count(2), default=None, help="grid cells along the longest axis")
     x.add_argument("--format", choices=["stl", "ply", "obj"], default=None, help="mesh format of a 3D run (default stl)")
     x.add_argument("--out", help="output directory (default RUN/export)")
+    x.add_argument("--device", type=device, help="cpu or cuda[:N] (default: the run's)")
 
     pl = sub.add_parser("plot", help="draw the paper's figures for a run (PNG)")
     pl.add_argument("run_dir")
     pl.add_argument("--resolution", type=count(2), default=None, help="grid cells along the longest axis")
+    pl.add_argument("--device", type=device, help="cpu or cuda[:N] (default: the run's)")
 
     v = sub.add_parser("view", help="write the latent-space explorer of a run (one self-contained HTML file)")
     v.add_argument("run_dir")
@@ -80,6 +82,7 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("--steps", type=count(1, MAX_STEPS), default=64,
                    help=f"evenly spaced latent values besides the trained ones (default 64, at most {MAX_STEPS}: each is a "
                         "picture in the page, judged as ginn eval judges it)")
+    v.add_argument("--device", type=device, help="cpu or cuda[:N] (default: the run's)")
 
     add_sweep_parser(sub)
     return p
