@@ -89,9 +89,10 @@ def test_builtin_specs_state_every_derived_setting():
         notes = spec.derived_notes(cfg)
         allowed = {"model.kind", "model.w0_hidden"} | ({"model.w0_first"} if name == "plateau" else set())
         allowed |= {"losses.topology.weight", "topology.grid"}  # act only with topology targets; these state none
+        allowed.add("losses.volume.weight")  # acts only with a volume bound; these state none
         if name == "plateau":
             allowed.add("latents.draw")  # acts only with latent codes; Plateau trains one shape
-        assert not spec.build().topology.targets
+        assert not spec.build().topology.targets and spec.build().tolerances.volume_fraction is None
         assert cfg.model.frame == "raw" and cfg.balancing.method == "weighted"
         kept = {n.split(" = ")[0] for n in notes}
         # a derived value may coincide with the stated one; what matters is that none is taken from derived alone

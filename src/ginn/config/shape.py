@@ -29,6 +29,7 @@ class LossesConfig(Strict):
     connectedness: LossTerm = LossTerm()
     topology: LossTerm = LossTerm()
     diversity: LossTerm = LossTerm()
+    volume: LossTerm = LossTerm()
     containment_power: Literal[1, 2] = Field(
         2,
         description="exponent of the design-region and obstacle penalties: 2 is the paper's mean of "

@@ -22,13 +22,15 @@ from .normal import Normal
 from .samples import BAND, BUILTIN_SETS, DOMAIN, INTERFACE, OBSTACLE, OUTSIDE, SampleSet
 from .symmetry import SymmetryVerdict
 from .verdict import Verdict, Violation
+from .volume import VolumeFraction, VolumeFractionVerdict
 
 __all__ = [
     "Constraint", "Setting", "Stage", "Batch", "Surface", "SampleSet", "Verdict", "Violation",
     "DOMAIN", "OUTSIDE", "OBSTACLE", "INTERFACE", "BAND", "BUILTIN_SETS",
     "Eikonal", "DesignRegion", "Obstacle", "Interface", "Normal", "MeanCurvature", "Strain", "Diversity",
-    "Connectedness", "HoleTargets",
+    "Connectedness", "HoleTargets", "VolumeFraction",
     "InterfaceVerdict", "VolumeOutside", "Connected", "TopologyTargets", "SymmetryVerdict", "LeastDiversity",
+    "VolumeFractionVerdict",
     "BETTI_METRICS", "containment_floor", "judged_volume_outside",
     "shape_constraints", "problem_verdicts", "verdicts_of", "describe", "verdict_text",
 ]

@@ -14,18 +14,21 @@ from .interface import Interface, InterfaceVerdict
 from .normal import Normal
 from .symmetry import SymmetryVerdict
 from .verdict import Verdict, Violation, number_text
+from .volume import VolumeFraction, VolumeFractionVerdict
 
 __all__ = ["shape_constraints", "problem_verdicts", "verdicts_of", "describe", "verdict_text"]
 
 #: the built-in verdicts by name (their texts)
 BUILTIN_VERDICTS: dict[str, type[Verdict]] = {
-    v.name: v for v in (InterfaceVerdict, VolumeOutside, Connected, TopologyTargets, SymmetryVerdict, LeastDiversity)}
+    v.name: v for v in (InterfaceVerdict, VolumeOutside, Connected, TopologyTargets, SymmetryVerdict, LeastDiversity,
+                        VolumeFractionVerdict)}
 
 
 def shape_constraints(setting: Setting) -> list[Constraint]:
     """Every term a shape problem can have, in the order of its loss terms: the eikonal
     objective, containment in E and out of the obstacles, the interfaces and their normals, the
-    curvature objectives, the diversity (generative models), connectedness and the hole targets.
+    curvature objectives, the diversity (generative models), connectedness, the hole targets and
+    the volume bounds.
     A term applies where the geometry has what it acts on (E, obstacles, interfaces with normals,
     topology targets); whether it is active is the trainer's business (its weight and start)."""
     p = setting.problem
@@ -44,13 +47,15 @@ def shape_constraints(setting: Setting) -> list[Constraint]:
     out.append(Connectedness(setting))
     if p.topology.targets:
         out.append(HoleTargets(setting))
+    if p.tolerances.volume_fraction is not None:
+        out.append(VolumeFraction(setting))
     return out
 
 
 def problem_verdicts(problem: Problem) -> list[Verdict]:
     """The verdicts of ``problem``'s tolerances, in the order ``ginn eval`` reports them: the
-    interfaces, the volume outside E, connectedness, the topology targets, the symmetry, and the
-    least diversity of the set."""
+    interfaces, the volume outside E, connectedness, the topology targets, the symmetry, the
+    volume bounds, and the least diversity of the set."""
     out: list[Verdict] = []
     if problem.interfaces:
         out.append(InterfaceVerdict(problem))
@@ -61,6 +66,8 @@ def problem_verdicts(problem: Problem) -> list[Verdict]:
         out.append(TopologyTargets(problem))
     if problem.symmetry is not None:
         out.append(SymmetryVerdict(problem))
+    if problem.tolerances.volume_fraction is not None:
+        out.append(VolumeFractionVerdict(problem))
     if problem.tolerances.diversity is not None:
         out.append(LeastDiversity(problem))
     return out

@@ -11,6 +11,9 @@ Names (the keys of ``metrics.json``) and estimators:
   it, so its value there depends on the grid's alignment with dE (the trained obstacle, 16
   shapes: worst 4.5e-3, 3.0e-3, 9.8e-3, 1.3e-2 at 128, 256, 512, 1024 cells; without the sliver
   4.5e-3, 3.0e-3, 4.3e-3, 5.0e-3).
+* ``volume_fraction`` = vol(Omega cap E) / vol(E): trapezoid-rule volumes of grid-node masks (E:
+  the domain where the problem has no design region). Not in the paper; ``tolerances.volume_fraction``
+  bounds it.
 * ``boundary_overlap`` = vol(Omega cap dE) / vol(dE): the design region's boundary is sampled
   (nearly) uniformly by projecting the nodes of a band ``|sdf_E| < h`` (on the grid extended four
   nodes beyond X, so the part of dE on the domain faces is sampled like the rest) onto ``sdf_E = 0``
@@ -87,6 +90,7 @@ __all__ = [
     "extract_shape",
     "shape_metrics",
     "volume_outside",
+    "volume_fraction",
     "surface_genus",
     "near_interfaces",
     "boundary_overlap",
@@ -116,6 +120,13 @@ def volume_outside(inside: np.ndarray, in_design: np.ndarray, weights: np.ndarra
     if vol_outside_design <= 0:
         return 0.0
     return float(weights[inside & ~in_design].sum(dtype=np.float64)) / vol_outside_design
+
+
+def volume_fraction(inside: np.ndarray, in_design: np.ndarray, weights: np.ndarray, vol_design: float) -> float | None:
+    """vol(Omega cap E) / vol(E) from node masks (None when E has no volume)."""
+    if vol_design <= 0:
+        return None
+    return float(weights[inside & in_design].sum(dtype=np.float64)) / vol_design
 
 
 def boundary_overlap(
@@ -448,6 +459,7 @@ def shape_metrics(
     timed("volume_outside", lambda: volume_outside(inside, ctx.in_design, ctx.weights, ctx.vol_outside_design))
     timed("volume_outside_off_interfaces",
           lambda: volume_outside(inside, ~ctx.counted_outside, ctx.weights, ctx.vol_outside_design))
+    timed("volume_fraction", lambda: volume_fraction(inside, ctx.in_design, ctx.weights, ctx.vol_design))
     timed(
         "surface_strain",
         lambda: surface_strain(

@@ -22,6 +22,7 @@ METRIC_LABELS = {
     "boundary_overlap": "↓ vol(Ω ∩ ∂E) / vol(∂E)",
     "volume_outside": "↓ vol(Ω \\ E) / vol(X \\ E)",
     "volume_outside_off_interfaces": "↓ vol(Ω \\ (E ∪ I_h)) / vol(X \\ E)",
+    "volume_fraction": "vol(Ω ∩ E) / vol(E)",
     "surface_strain": "↓ E_strain(Ω)",
     "symmetry_error": "↓ symmetry error",
     "diversity_mean": "↑ δ_mean(S)",

@@ -31,6 +31,7 @@ METRIC_NAMES = (
     "boundary_overlap",
     "volume_outside",
     "volume_outside_off_interfaces",
+    "volume_fraction",
     "surface_strain",
     "symmetry_error",
 )
@@ -62,6 +63,7 @@ class ShapeMetrics:
     boundary_overlap: float | None = None
     volume_outside: float | None = None
     volume_outside_off_interfaces: float | None = None
+    volume_fraction: float | None = None
     surface_strain: float | None = None
     symmetry_error: float | None = None
     extra: dict[str, Any] = field(default_factory=dict)

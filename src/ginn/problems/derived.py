@@ -138,6 +138,8 @@ RULES: tuple[Rule, ...] = (
     Rule("losses.topology.weight", "8 / s", lambda g: 8.0 / g.s,
          "hinges on field values, as connectedness (only with `topology:` targets)", "s"),
     Rule("losses.diversity.weight", "0.015 / s", lambda g: 0.015 / g.s, "the aggregated shape distance scales as `s`", "s"),
+    Rule("losses.volume.weight", "1", lambda g: 1.0,
+         "a volume fraction: no scale (only with `tolerances.volume_fraction`)"),
     Rule("losses.containment_power", "1", lambda g: 1,
          "the exact penalty cut the obstacle's remaining volume outside E 3.5x at the same CD1; 2 is the paper's "
          "(`docs/obstacle.md`)"),

@@ -33,6 +33,7 @@ def _not_a_boolean(v):
 Finite = Annotated[float, Field(ge=-MAX_MAGNITUDE, le=MAX_MAGNITUDE, allow_inf_nan=False), BeforeValidator(_not_a_boolean)]
 Positive = Annotated[float, Field(gt=0, le=MAX_MAGNITUDE, allow_inf_nan=False), BeforeValidator(_not_a_boolean)]
 NonNegative = Annotated[float, Field(ge=0, le=MAX_MAGNITUDE, allow_inf_nan=False), BeforeValidator(_not_a_boolean)]
+Fraction = Annotated[float, Field(ge=0, le=1, allow_inf_nan=False), BeforeValidator(_not_a_boolean)]
 
 
 def spec_dim(info: ValidationInfo) -> int | None:

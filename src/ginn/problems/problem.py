@@ -9,6 +9,19 @@ from ..geometry.symmetry import Symmetry
 
 
 @dataclass(frozen=True)
+class VolumeBounds:
+    """Bounds on the volume fraction ``vol(Omega cap E) / vol(E)`` of every shape (E: the design
+    region, or the domain where there is none); None: no bound on that side."""
+
+    min: float | None = None
+    max: float | None = None
+
+    def violated(self, fraction: float) -> bool:
+        """Whether ``fraction`` lies outside the bounds."""
+        return (self.max is not None and fraction > self.max) or (self.min is not None and fraction < self.min)
+
+
+@dataclass(frozen=True)
 class Tolerances:
     """When a shape counts as feasible (:mod:`ginn.eval.feasibility`), in the problem's units.
 
@@ -24,6 +37,7 @@ class Tolerances:
             the diversity is maximised as an objective, the paper's setting).
         symmetry: bound of the symmetry error (:func:`ginn.eval.metrics.symmetry_error`) in units
             of ``unit_scale``, where the problem states a symmetry.
+        volume_fraction: bounds on each shape's volume as a fraction of E (None: free).
     """
 
     interface: float = 5e-3
@@ -32,6 +46,7 @@ class Tolerances:
     normal_angle: float = 10.0
     symmetry: float = 5e-3
     diversity: float | None = None
+    volume_fraction: VolumeBounds | None = None
 
 
 @dataclass(frozen=True)

@@ -25,8 +25,8 @@ from ..geometry.symmetry import Mirror, Rotation, Symmetry
 from .derived import derived_defaults, half_longest_side
 from .forced import forced_holes, forced_tunnels
 from .interfaces import INTERFACE_TYPES, InterfaceSpec
-from .nodes import Dir3, Direction, Node, NonNegative, Point, Positive, check_lo_hi, spec_dim
-from .problem import Problem, Tolerances, Topology
+from .nodes import Dir3, Direction, Fraction, Node, NonNegative, Point, Positive, check_lo_hi, spec_dim
+from .problem import Problem, Tolerances, Topology, VolumeBounds
 from .regions import REGION_TYPES, RegionSpec
 from .symmetric import check_symmetric
 
@@ -56,6 +56,24 @@ class GeometrySpec(Node):
         None, description="the length at which tolerances are stated; default half the longest side of the domain")
 
 
+class VolumeFractionSpec(Node):
+    """Bounds on each shape's volume as a fraction of E (:class:`~ginn.problems.problem.VolumeBounds`)."""
+
+    min: Fraction | None = Field(None, description="the least vol(shape in E) / vol(E)")
+    max: Fraction | None = Field(None, description="the largest vol(shape in E) / vol(E)")
+
+    @model_validator(mode="after")
+    def _ordered(self) -> VolumeFractionSpec:
+        if self.min is None and self.max is None:
+            raise ValueError("state min, max or both")
+        if self.min is not None and self.max is not None and self.min > self.max:
+            raise ValueError(f"min {self.min} is above max {self.max}")
+        return self
+
+    def build(self) -> VolumeBounds:
+        return VolumeBounds(self.min, self.max)
+
+
 class TolerancesSpec(Node):
     """When a shape is feasible (:class:`~ginn.problems.problem.Tolerances`)."""
 
@@ -70,6 +88,14 @@ class TolerancesSpec(Node):
         "must be at least this diverse and is not pushed further (none: diversity is maximised)")
     symmetry: Positive = Field(5e-3, description="bound of the RMS distance from the shape's boundary mapped by each "
                                "symmetry to the boundary, in units of geometry.unit_scale (when a symmetry is stated)")
+    volume_fraction: VolumeFractionSpec | None = Field(
+        None, description="bounds on each shape's volume inside E as a fraction of vol(E) (E: the domain where "
+        "there is no design region): {max: 0.3}, {min: 0.2}, or both; a number is the largest fraction")
+
+    @field_validator("volume_fraction", mode="before")
+    @classmethod
+    def _number_is_max(cls, v: Any) -> Any:
+        return {"max": v} if isinstance(v, (int, float)) and not isinstance(v, bool) else v
 
 
 Count = Annotated[int, Field(ge=0, strict=True)]
@@ -330,8 +356,10 @@ class ProblemSpec(BaseModel):
             obstacles=obstacles,
             interface_band=float(g.interface_band),
             unit_scale=unit_scale,
-            tolerances=Tolerances(**{**self.tolerances.model_dump(),
-                                     "connected": self.tolerances.connected or self.topology.components == 1}),
+            tolerances=Tolerances(**{**self.tolerances.model_dump(exclude={"volume_fraction"}),
+                                     "connected": self.tolerances.connected or self.topology.components == 1,
+                                     "volume_fraction": self.tolerances.volume_fraction
+                                     and self.tolerances.volume_fraction.build()}),
             topology=self.topology.build(dim),
             symmetry=symmetry,
             description=self.description,

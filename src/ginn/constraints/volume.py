@@ -1,0 +1,126 @@
+"""Volume bounds: each shape's volume inside E, as a fraction of vol(E), within the bounds the spec
+states (``tolerances.volume_fraction``: at most, at least, or both).
+
+Loss: per shape, ``relu(V + s - max) + relu(min - V + s)``, the mean over the shapes. ``V`` is
+the share of the ``m`` uniform domain samples in E that lie in the shape (``f <= 0``), an
+unbiased estimate of the volume fraction; its gradient is that of the smoothed count
+``sigmoid(-f / w)`` (the value of the one, the derivative of the other). The smoothed count alone
+depends on how steep the field is on each side of the boundary, and a trained field is a distance
+only near its boundary, if there: trained on it, the obstacle with ``max: 0.35`` (4 shapes) ended
+with smoothed counts 0.02 to 0.03 below the share of samples and two of its four shapes over the
+bound on the grid. The step's width ``w`` is half the mean spacing of the domain samples,
+``(vol(X) / n_domain)^(1/d) / 2``, so that the samples near the boundary carry the gradient.
+``s = sqrt(V (1 - V) / m)`` is the estimate's standard error: the penalty acts only on the steps
+whose estimate lies beyond the bound, so the forces that widen a shape (diversity, the
+interfaces) would hold it where about half the estimates do, over the bound; moved by ``s``, it
+holds the shapes inside. An exact penalty (power 1), like the containment terms.
+
+Verdict: ``volume_fraction`` of ``ginn eval`` (:func:`ginn.eval.metrics.volume_fraction`, grid
+volumes) within the bounds.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+
+import torch
+from torch import Tensor
+
+from ..problems.problem import Problem
+from .base import Constraint, Setting
+from .batch import Batch
+from .samples import DOMAIN
+from .verdict import Verdict, Violation, number_text
+
+__all__ = ["VolumeFractionVerdict", "VolumeFraction", "step_width"]
+
+
+class VolumeFractionVerdict(Verdict):
+    """``volume_fraction`` within ``tolerances.volume_fraction`` (problems that state it)."""
+
+    name = "volume_fraction"
+
+    def __init__(self, problem: Problem):
+        super().__init__(problem)
+        self.metrics = ("volume_fraction",)
+        self.bounds = problem.tolerances.volume_fraction
+
+    def violation(self, metrics: Mapping) -> Violation | None:
+        v = metrics.get("volume_fraction")
+        b = self.bounds
+        if b is None or v is None or not b.violated(v):
+            return None
+        return Violation(float(v), b.max if b.max is not None and v > b.max else b.min)
+
+    def ratio(self, metrics: Mapping) -> float | None:
+        """The larger of ``V / max`` and ``min / V`` (above 1: violated)."""
+        v = metrics.get("volume_fraction")
+        b = self.bounds
+        if b is None or v is None:
+            return None
+        out = 0.0
+        if b.max is not None:
+            out = v / b.max if b.max > 0 else (math.inf if v > 0 else 0.0)
+        if b.min is not None and b.min > 0:
+            out = max(out, b.min / v if v > 0 else math.inf)
+        return out
+
+    @classmethod
+    def describe(cls, v: Violation) -> str:
+        side = ">" if v.value > v.bound else "<"
+        return f"{cls.name} {number_text(v.value)} {side} {number_text(v.bound)}"
+
+
+def step_width(setting: Setting) -> float:
+    """``w``: half the mean spacing of the domain samples (module docstring)."""
+    dom = setting.problem.domain
+    volume = math.prod(float(h - l) for l, h in zip(dom.lo, dom.hi))
+    return 0.5 * (volume / setting.cfg.sampling.n_domain) ** (1.0 / setting.dim)
+
+
+class VolumeFraction(Constraint):
+    """Each shape's volume fraction of E within its bounds (see the module docstring)."""
+
+    name = "volume"
+    samples = (DOMAIN,)
+
+    def __init__(self, setting: Setting):
+        super().__init__(setting)
+        self._verdict = VolumeFractionVerdict(setting.problem)
+        self.width = step_width(setting)
+
+    @property
+    def verdict(self) -> VolumeFractionVerdict:
+        return self._verdict
+
+    def fractions(self, batch: Batch) -> tuple[Tensor, Tensor]:
+        """The estimated volume fraction of each shape (the share of its samples, with the
+        smoothed count's gradient) and its standard error (detached), ``(S,)`` each."""
+        f = batch.f["domain"]  # (S, n)
+        x = batch.x["domain"]  # (S, n, d)
+        member = self.setting.membership
+        with torch.no_grad():
+            inE = (torch.ones(f.shape, dtype=torch.bool, device=f.device) if member is None
+                   else member.contains(x.reshape(-1, batch.d)).reshape(f.shape))
+        weight = inE.to(f.dtype)
+        m = weight.sum(dim=1).clamp_min(1.0)
+        smooth = (torch.sigmoid(-f / self.width) * weight).sum(dim=1) / m
+        with torch.no_grad():
+            share = ((f <= 0).to(f.dtype) * weight).sum(dim=1) / m
+            err = (share * (1 - share)).div(m).sqrt()
+        return share + (smooth - smooth.detach()), err
+
+    def loss(self, batch: Batch) -> Tensor | None:
+        b = self.setting.problem.tolerances.volume_fraction
+        if b is None or "domain" not in batch.f:
+            return None
+        v, err = self.fractions(batch)
+        zero = torch.zeros_like(v)
+        over = torch.relu(v + err - b.max) if b.max is not None else zero
+        under = torch.relu(b.min - v + err) if b.min is not None else zero
+        return (over + under).mean()
+
+    def target(self) -> float:
+        """0: within the bounds."""
+        return 0.0
