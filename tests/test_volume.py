@@ -147,3 +147,15 @@ def test_the_penalty_pushes_the_boundary_in_when_over_and_out_when_under():
         batch = SimpleNamespace(f={"domain": x.norm(dim=-1) - r}, x={"domain": x}, d=2)
         _term(bounds).loss(batch).backward()
         assert sign * float(r.grad) > 0  # descent shrinks the disk over a max, grows it under a min
+
+
+@pytest.mark.parametrize("name, bound", [("obstacle-35", 0.35), ("obstacle-50", 0.5)])
+def test_the_benchmark_specs_are_the_obstacle_with_a_bound(name, bound):
+    from pathlib import Path
+
+    from ginn.problems import load_spec
+
+    spec = load_spec(Path(__file__).resolve().parents[1] / "benchmarks" / "volume" / f"{name}.yaml")
+    assert spec.build().tolerances.volume_fraction == VolumeBounds(None, bound)
+    assert spec.geometry == load_spec("obstacle").geometry
+    assert spec.defaults == {"latents": {"n_shapes": 4, "dim": 1, "low": -1.0, "high": 1.0}}
