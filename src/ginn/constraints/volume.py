@@ -7,8 +7,8 @@ unbiased estimate of the volume fraction; its gradient is that of the smoothed c
 ``sigmoid(-f / w)`` (the value of the one, the derivative of the other). The smoothed count alone
 depends on how steep the field is on each side of the boundary, and a trained field is a distance
 only near its boundary, if there: trained on it, the obstacle with ``max: 0.35`` (4 shapes) ended
-with smoothed counts 0.02 to 0.03 below the share of samples and two of its four shapes over the
-bound on the grid. The step's width ``w`` is half the mean spacing of the domain samples,
+with smoothed counts 0.02 to 0.03 below the share of samples and shapes over the bound on the
+grid (``docs/results.md``, "Volume bounds"). The step's width ``w`` is half the mean spacing of the domain samples,
 ``(vol(X) / n_domain)^(1/d) / 2``, so that the samples near the boundary carry the gradient.
 ``s = sqrt(V (1 - V) / m)`` is the estimate's standard error: the penalty acts only on the steps
 whose estimate lies beyond the bound, so the forces that widen a shape (diversity, the
