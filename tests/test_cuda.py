@@ -86,7 +86,8 @@ def test_generative_3d_trains_and_evaluates_on_cuda(tmp_path, capsys, few_heldou
     ["mirror", "--preset", "demo"],
     ["plateau", "--preset", "demo"],
     ["bracket", "--preset", "demo", "--set", "latents.n_shapes=2"],
-], ids=["gray-scott", "mirror", "plateau", "bracket"])
+    [str(Path(__file__).resolve().parents[1] / "benchmarks" / "volume" / "obstacle-35.yaml")],
+], ids=["gray-scott", "mirror", "plateau", "bracket", "volume-bound"])
 def test_every_task_kind_steps_on_cuda(args, tmp_path, capsys, few_heldout_checks):
     run = tmp_path / "run"
     code, _, err = _run(["train", *args, "--iterations", "2", "--device", DEVICE, "--out", str(run), "--no-results", "--quiet"], capsys)
