@@ -159,3 +159,14 @@ def test_the_benchmark_specs_are_the_obstacle_with_a_bound(name, bound):
     assert spec.build().tolerances.volume_fraction == VolumeBounds(None, bound)
     assert spec.geometry == load_spec("obstacle").geometry
     assert spec.defaults == {"latents": {"n_shapes": 4, "dim": 1, "low": -1.0, "high": 1.0}}
+
+
+def test_the_explorer_shows_the_fraction_beside_the_verdict():
+    from ginn.eval.results import ShapeMetrics
+    from ginn.viz.explorer import _verdict
+
+    P = Problem("t", BOX2, design_region=E2, tolerances=Tolerances(connected=False, volume_fraction=VolumeBounds(max=0.25)))
+    over = _verdict(ShapeMetrics(volume_fraction=0.3, volume_outside=0.0), P)
+    assert over.startswith("volume_fraction 0.3 &gt; 0.25") or over.startswith("volume_fraction 0.3 > 0.25")
+    assert "volume fraction of E 0.300 (bounds 0 to 0.25)" in over
+    assert "volume fraction" not in _verdict(ShapeMetrics(volume_fraction=0.3), Problem("t", BOX2, design_region=E2))

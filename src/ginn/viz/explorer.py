@@ -125,6 +125,10 @@ def _verdict(m: ShapeMetrics, problem: Problem, judge: FeasibilityCheck | None =
         lines.append(f"volume outside E off the interfaces {vol:.2e} (bound {problem.tolerances.volume_outside:.2e})")
     if b0 is not None:
         lines.append(f"pieces inside E {int(b0)}")
+    bounds, frac = problem.tolerances.volume_fraction, m.get("volume_fraction")
+    if bounds is not None and frac is not None:
+        lines.append(f"volume fraction of E {frac:.3f} (bounds {bounds.min if bounds.min is not None else 0:g} to "
+                     f"{bounds.max if bounds.max is not None else 1:g})")
     return "<br>".join(lines)
 
 
