@@ -167,3 +167,49 @@ def test_latent_scale_keeps_the_latent_box_as_many_periods_as_one_axis():
     assert mlp.model.latent_scale == pytest.approx(2.0 ** -0.5)
     _, own = runs.resolve("obstacle", None, sets=["latents.dim=2", "model.latent_scale=0.5"])
     assert own.model.latent_scale == 0.5
+
+
+# --- codes per step ----------------------------------------------------------------------------
+
+
+def test_a_lattice_step_trains_at_least_the_floor_and_other_draws_their_shapes():
+    from ginn.models.latents import step_codes
+    assert step_codes(LatentConfig(n_shapes=4, draw="lattice"), 16) == 16
+    assert step_codes(LatentConfig(n_shapes=32, draw="lattice"), 16) == 32
+    assert step_codes(LatentConfig(n_shapes=4, draw="fixed"), 16) == 4
+    assert step_codes(LatentConfig(n_shapes=4, draw="uniform"), 16) == 4
+    assert step_codes(LatentConfig(n_shapes=1, draw="lattice"), 16) == 1
+    Z = step_latents(LatentConfig(n_shapes=4, draw="lattice"), torch.Generator().manual_seed(0), None, n=16)
+    assert Z.shape == (16, 1)
+
+
+def test_sixteen_codes_shifted_by_half_a_cell_hold_the_four_reported_codes():
+    """16 - 1 is a multiple of 4 - 1: the step's lattice at the half-cell shift contains the reported set."""
+    cfg = LatentConfig(n_shapes=4, dim=1, low=-1.0, high=1.0)
+    lo, hi = lattice_span(cfg, 16)
+    half = (lo + (hi - lo) * unit_lattice(16, 1, torch.tensor([0.5 / 16]))[:, 0]).tolist()
+    assert half == pytest.approx([-1 + 2 * i / 15 for i in range(16)])
+    for z in (-1.0, -1 / 3, 1 / 3, 1.0):
+        assert min(abs(z - h) for h in half) < 1e-12
+
+
+def test_a_step_spreads_the_reported_shapes_samples_over_its_codes():
+    """obstacle demo (4 shapes, lattice): 16 codes a step in 2D, each with a quarter of the samples,
+    so the step evaluates as many points as 4 shapes did; with fixed codes nothing changes."""
+    from ginn.problems import load_spec
+    from ginn.tasks import make_task
+    from ginn.tasks.shape.task import spread_sampling
+    spec = load_spec("obstacle")
+    cfg = spec.config("demo", {"sampling": {"n_interface": 64, "n_band": 0}})
+    assert cfg.latents.n_shapes == 4 and cfg.latents.draw == "lattice"
+    task = make_task(spec, cfg)
+    assert task.step_codes == 16
+    s, s0 = task.setting.cfg.sampling, cfg.sampling
+    assert (s.n_interface, s.n_domain, s.n_boundary) == (16, s0.n_domain // 4, s0.n_boundary // 4)
+    assert s.n_band == 0 and s.projection_steps == s0.projection_steps
+    terms = task.loss_terms(task.build_model(), 0, {"interface", "normal", "eikonal"}, torch.Generator().manual_seed(0))
+    assert set(terms) >= {"interface", "normal", "eikonal"}
+    fixed = spec.config("demo", {"latents": {"draw": "fixed"}})
+    assert make_task(spec, fixed).step_codes == 4 and spread_sampling(fixed, 4) is fixed
+    odd = spread_sampling(spec.config("demo", {"sampling": {"n_interface": 3}}), 16)
+    assert odd.sampling.n_interface == 1  # at least one sample per code

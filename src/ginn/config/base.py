@@ -9,7 +9,8 @@ from typing import Literal
 import torch
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
-__all__ = ["Strict", "LossTerm", "DTYPES", "STRAIN_CLIP", "RESOLUTION", "HELDOUT_LATENTS", "HELDOUT_PER_SHAPE", "default_resolution"]
+__all__ = ["Strict", "LossTerm", "DTYPES", "STRAIN_CLIP", "RESOLUTION", "HELDOUT_LATENTS", "HELDOUT_PER_SHAPE",
+           "MIN_STEP_CODES", "default_resolution"]
 
 #: Names of the floating-point types a run may train in (``training.dtype``).
 DTYPES = {"float32": torch.float32, "float64": torch.float64}
@@ -33,6 +34,15 @@ HELDOUT_LATENTS = {"eval": {2: 256, 3: 32}, "check": {2: 16, 3: 4}}
 #: shapes a model spreads over its latent set change branch in bands of about a reported spacing or
 #: less, which a coarser set steps over).
 HELDOUT_PER_SHAPE = 2
+
+#: A step that draws its codes from the latent set (``latents.draw: lattice``) trains at least this
+#: many, by dimension: as many as a check judges (``HELDOUT_LATENTS["check"]``), so that training
+#: covers Z at least as finely as it is judged. The samples of the ``n_shapes`` reported shapes are
+#: spread over the step's codes (:func:`ginn.tasks.shape.task.spread_sampling`), so a step costs about
+#: what it did: pins-2d (4 shapes, seed 1) trained 4 codes a step with every reported shape's
+#: interface CD1 about twice its bound to the end, and 16 codes of a quarter of the samples each
+#: in the same time with every reported shape within it (``docs/results.md``, "The latent set").
+MIN_STEP_CODES = dict(HELDOUT_LATENTS["check"])
 
 
 def default_resolution(purpose: Literal["eval", "output", "figure", "check"], dim: int) -> int:

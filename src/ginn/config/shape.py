@@ -45,7 +45,9 @@ class LossesConfig(Strict):
 
 
 class SamplingConfig(Strict):
-    """Monte Carlo point budgets per shape and iteration."""
+    """Monte Carlo point budgets per shape and iteration (per reported shape: a step that trains
+    more codes than ``latents.n_shapes`` spreads the reported shapes' samples over its codes,
+    :func:`ginn.tasks.shape.task.spread_sampling`)."""
 
     n_domain: int = Field(4096, gt=0, description="uniform points in X (eikonal)")
     n_outside: int = Field(2048, ge=0, description="points in X minus E (design-region loss)")

@@ -3,7 +3,8 @@
 The latent set is the box ``Z = [low, high]^k``. A run *reports* ``n_shapes`` codes
 (:func:`fixed_latents`: the shapes it writes and ``ginn eval`` measures) and, with
 ``latents.draw: lattice`` (what shape specs derive), trains on all of ``Z``: every step draws a
-randomly shifted rank-1 lattice of ``n_shapes`` codes (:func:`lattice_latents`).
+randomly shifted rank-1 lattice of ``C = max(n_shapes, floor)`` codes (:func:`lattice_latents`,
+:func:`step_codes`; the floor is :data:`ginn.config.MIN_STEP_CODES`).
 
 A rank-1 lattice of ``n`` points in the unit cube is ``{frac(i g / n) : i = 0..n-1}`` for an
 integer generating vector ``g = (1, a, a^2, ...) mod n`` (Korobov's form); shifted by a uniform
@@ -41,7 +42,7 @@ from torch import Tensor
 from ..config import LatentConfig
 
 __all__ = ["fixed_latents", "random_latents", "lattice_latents", "lattice_span", "lattice_generator", "unit_lattice",
-           "step_latents", "heldout_latents", "grid_latents", "latent_dim", "midpoints"]
+           "step_codes", "step_latents", "heldout_latents", "grid_latents", "latent_dim", "midpoints"]
 
 
 def fixed_latents(cfg: LatentConfig, device=None, dtype=torch.float32) -> Tensor | None:
@@ -121,16 +122,25 @@ def lattice_span(cfg: LatentConfig, n: int | None = None) -> tuple[float, float]
     return cfg.low - w, cfg.high + w
 
 
+def step_codes(cfg: LatentConfig, floor: int = 1) -> int:
+    """How many codes one training step trains: ``max(n_shapes, floor)`` for a lattice draw,
+    ``n_shapes`` otherwise (1 for a single shape)."""
+    if cfg.n_shapes == 1:
+        return 1
+    return max(cfg.n_shapes, floor) if cfg.draw == "lattice" else cfg.n_shapes
+
+
 def step_latents(cfg: LatentConfig, gen: torch.Generator, reported: Tensor | None, device=None,
-                 dtype=torch.float32) -> Tensor | None:
+                 dtype=torch.float32, n: int | None = None) -> Tensor | None:
     """The codes one training step trains (``latents.draw``): the reported set (``fixed``), fresh
-    uniform draws (``uniform``) or a randomly shifted lattice (``lattice``); None for a single shape."""
+    uniform draws (``uniform``) or a randomly shifted lattice of ``n`` codes (``lattice``; default
+    ``n_shapes``, see :func:`step_codes`); None for a single shape."""
     if cfg.n_shapes == 1:
         return None
     if cfg.draw == "uniform":
         return random_latents(cfg, gen, device, dtype)
     if cfg.draw == "lattice":
-        return lattice_latents(cfg, gen, device, dtype)
+        return lattice_latents(cfg, gen, device, dtype, n=n)
     return reported
 
 

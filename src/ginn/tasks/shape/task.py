@@ -17,14 +17,14 @@ from collections.abc import Callable, Sequence
 import torch
 from torch import Tensor, nn
 
-from ...config import HELDOUT_LATENTS, HELDOUT_PER_SHAPE, LossTerm, RunConfig, default_resolution
+from ...config import HELDOUT_LATENTS, HELDOUT_PER_SHAPE, MIN_STEP_CODES, LossTerm, RunConfig, default_resolution
 from ...constraints import BUILTIN_SETS, Batch, Constraint, SampleSet, Setting, Verdict, shape_constraints, verdicts_of
 from ...errors import ConfigError, SpecError
 from ...eval.feasibility import FeasibilityCheck
 from ...geometry.base import Region
 from ...models.factory import build_model
 from ...models.frame import DomainFrame
-from ...models.latents import fixed_latents, heldout_latents, latent_dim, step_latents
+from ...models.latents import fixed_latents, heldout_latents, latent_dim, step_codes, step_latents
 from ...models.symmetric import FOLD_SMOOTHING, SymmetricField
 from ...problems.derived import length_scale
 from ...problems.problem import Problem
@@ -35,7 +35,22 @@ from ...train.task import Task
 from .checks import FeasibilityChecks
 from .results import ShapeResults
 
-__all__ = ["ShapeTask"]
+__all__ = ["ShapeTask", "spread_sampling"]
+
+
+def spread_sampling(cfg: RunConfig, codes: int) -> RunConfig:
+    """``cfg`` with the per-shape sample counts of a step that trains ``codes`` codes: the samples
+    of the ``n_shapes`` reported shapes (``sampling.n_*`` each) spread over the codes, ``round(n
+    * n_shapes / codes)`` each and at least 1 (``cfg`` itself when ``codes == n_shapes``). A step
+    estimates the loss averaged over ``Z x X``; with its samples fixed in number, more codes
+    estimate the average over ``Z`` better (:data:`ginn.config.MIN_STEP_CODES`)."""
+    S = cfg.latents.n_shapes
+    if codes == S:
+        return cfg
+    s = cfg.sampling
+    counts = {k: (max(1, round(getattr(s, k) * S / codes)) if getattr(s, k) > 0 else 0)
+              for k in ("n_domain", "n_outside", "n_obstacle", "n_interface", "n_band", "n_boundary")}
+    return cfg.model_copy(update={"sampling": s.model_copy(update=counts)})
 
 
 class ShapeTask(Task):
@@ -59,7 +74,9 @@ class ShapeTask(Task):
         super().__init__(cfg, device, dtype)
         self.problem = problem
         self.d = problem.dim
-        self.setting = Setting(problem, cfg, self.device, dtype)
+        #: codes per training step (:func:`ginn.models.latents.step_codes`)
+        self.step_codes = step_codes(cfg.latents, MIN_STEP_CODES[self.d])
+        self.setting = Setting(problem, spread_sampling(cfg, self.step_codes), self.device, dtype)
         #: the terms of the problem, in the order of its loss terms (:func:`ginn.constraints.shape_constraints`)
         self.constraints: list[Constraint] = shape_constraints(self.setting) + [make(self.setting) for make in extra]
         self.Z = fixed_latents(cfg.latents, self.device, dtype)
@@ -122,7 +139,7 @@ class ShapeTask(Task):
         """Train only this rank's slice of the shapes (``ginn.train.distributed``)."""
         if self.cfg.latents.n_shapes == 1:
             raise ConfigError("distributed training shards the shapes of a generative model: set latents.n_shapes > 1")
-        self.dist, self.shard = ctx, ctx.shard(self.cfg.latents.n_shapes)
+        self.dist, self.shard = ctx, ctx.shard(self.step_codes)
 
     @property
     def membership(self) -> Region | None:
@@ -132,7 +149,7 @@ class ShapeTask(Task):
     # --- one step ---------------------------------------------------------------------------
 
     def _step_latents(self, gen: torch.Generator) -> Tensor | None:
-        return step_latents(self.cfg.latents, gen, self.Z, self.device, self.dtype)
+        return step_latents(self.cfg.latents, gen, self.Z, self.device, self.dtype, n=self.step_codes)
 
     def draw_batch(self, S: int, active: set[str], gen: torch.Generator, Z: Tensor | None = None, step: int = 0) -> Batch:
         """Fresh per-shape samples of the sets the active constraints read (and those drawn at
