@@ -64,8 +64,9 @@ class LatentConfig(Strict):
     draw: Literal["fixed", "uniform", "lattice"] = Field(
         "fixed", description="the codes each iteration trains: lattice (a randomly shifted rank-1 lattice of "
         "max(n_shapes, 16 in 2D or 4 in 3D) codes in [low, high]^dim, so that training covers the whole latent set "
-        "and every code of it gives a feasible shape; the n_shapes shapes' samples are spread over the codes), uniform (n_shapes fresh independent uniform draws), fixed (the n_shapes reported codes, "
-        "the paper's); the reported codes are the shapes a run writes and ginn eval measures either way; shape specs "
+        "and every code of it gives a feasible shape; the n_shapes shapes' samples are spread over the codes), "
+        "uniform (n_shapes fresh independent uniform draws), fixed (the n_shapes reported codes, the paper's); "
+        "the reported codes are the shapes a run writes and ginn eval measures either way; shape specs "
         "get lattice from the settings derived from their geometry")
 
 

@@ -30,6 +30,8 @@ class LossesConfig(Strict):
     topology: LossTerm = LossTerm()
     diversity: LossTerm = LossTerm()
     volume: LossTerm = LossTerm()
+    thickness: LossTerm = LossTerm()
+    gap: LossTerm = LossTerm()
     containment_power: Literal[1, 2] = Field(
         2,
         description="exponent of the design-region and obstacle penalties: 2 is the paper's mean of "

@@ -16,6 +16,7 @@ from .containment import DesignRegion, Obstacle, VolumeOutside, containment_floo
 from .curvature import MeanCurvature, Strain
 from .diversity import Diversity, LeastDiversity
 from .eikonal import Eikonal
+from .feature_size import MinGap, MinGapVerdict, MinThickness, MinThicknessVerdict
 from .holes import BETTI_METRICS, HoleTargets, TopologyTargets
 from .interface import Interface, InterfaceVerdict
 from .normal import Normal
@@ -28,9 +29,9 @@ __all__ = [
     "Constraint", "Setting", "Stage", "Batch", "Surface", "SampleSet", "Verdict", "Violation",
     "DOMAIN", "OUTSIDE", "OBSTACLE", "INTERFACE", "BAND", "BUILTIN_SETS",
     "Eikonal", "DesignRegion", "Obstacle", "Interface", "Normal", "MeanCurvature", "Strain", "Diversity",
-    "Connectedness", "HoleTargets", "VolumeFraction",
+    "Connectedness", "HoleTargets", "VolumeFraction", "MinThickness", "MinGap",
     "InterfaceVerdict", "VolumeOutside", "Connected", "TopologyTargets", "SymmetryVerdict", "LeastDiversity",
-    "VolumeFractionVerdict",
+    "VolumeFractionVerdict", "MinThicknessVerdict", "MinGapVerdict",
     "BETTI_METRICS", "containment_floor", "judged_volume_outside",
     "shape_constraints", "problem_verdicts", "verdicts_of", "describe", "verdict_text",
 ]

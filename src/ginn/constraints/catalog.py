@@ -9,6 +9,7 @@ from .containment import DesignRegion, Obstacle, VolumeOutside
 from .curvature import MeanCurvature, Strain
 from .diversity import Diversity, LeastDiversity
 from .eikonal import Eikonal
+from .feature_size import MinGap, MinGapVerdict, MinThickness, MinThicknessVerdict
 from .holes import HoleTargets, TopologyTargets
 from .interface import Interface, InterfaceVerdict
 from .normal import Normal
@@ -21,14 +22,14 @@ __all__ = ["shape_constraints", "problem_verdicts", "verdicts_of", "describe", "
 #: the built-in verdicts by name (their texts)
 BUILTIN_VERDICTS: dict[str, type[Verdict]] = {
     v.name: v for v in (InterfaceVerdict, VolumeOutside, Connected, TopologyTargets, SymmetryVerdict, LeastDiversity,
-                        VolumeFractionVerdict)}
+                        VolumeFractionVerdict, MinThicknessVerdict, MinGapVerdict)}
 
 
 def shape_constraints(setting: Setting) -> list[Constraint]:
     """Every term a shape problem can have, in the order of its loss terms: the eikonal
     objective, containment in E and out of the obstacles, the interfaces and their normals, the
-    curvature objectives, the diversity (generative models), connectedness, the hole targets and
-    the volume bounds.
+    curvature objectives, the diversity (generative models), connectedness, the hole targets, the
+    volume bounds and the least feature sizes.
     A term applies where the geometry has what it acts on (E, obstacles, interfaces with normals,
     topology targets); whether it is active is the trainer's business (its weight and start)."""
     p = setting.problem
@@ -49,13 +50,17 @@ def shape_constraints(setting: Setting) -> list[Constraint]:
         out.append(HoleTargets(setting))
     if p.tolerances.volume_fraction is not None:
         out.append(VolumeFraction(setting))
+    if p.tolerances.min_thickness is not None:
+        out.append(MinThickness(setting))
+    if p.tolerances.min_gap is not None:
+        out.append(MinGap(setting))
     return out
 
 
 def problem_verdicts(problem: Problem) -> list[Verdict]:
     """The verdicts of ``problem``'s tolerances, in the order ``ginn eval`` reports them: the
     interfaces, the volume outside E, connectedness, the topology targets, the symmetry, the
-    volume bounds, and the least diversity of the set."""
+    volume bounds, the least thickness and gap, and the least diversity of the set."""
     out: list[Verdict] = []
     if problem.interfaces:
         out.append(InterfaceVerdict(problem))
@@ -68,6 +73,10 @@ def problem_verdicts(problem: Problem) -> list[Verdict]:
         out.append(SymmetryVerdict(problem))
     if problem.tolerances.volume_fraction is not None:
         out.append(VolumeFractionVerdict(problem))
+    if problem.tolerances.min_thickness is not None:
+        out.append(MinThicknessVerdict(problem))
+    if problem.tolerances.min_gap is not None:
+        out.append(MinGapVerdict(problem))
     if problem.tolerances.diversity is not None:
         out.append(LeastDiversity(problem))
     return out

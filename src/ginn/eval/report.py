@@ -25,10 +25,14 @@ METRIC_LABELS = {
     "volume_fraction": "vol(Ω ∩ E) / vol(E)",
     "surface_strain": "↓ E_strain(Ω)",
     "symmetry_error": "↓ symmetry error",
+    "thickness_removed": "↓ vol(Ω minus its opening by the min-thickness ball) / vol(Ω)",
+    "gap_filled": "↓ vol(closing of Ω by the min-gap ball minus Ω) / vol(Ω)",
     "diversity_mean": "↑ δ_mean(S)",
 }
 
 _ROWS = tuple(k for k in METRIC_LABELS if k != "diversity_mean")
+#: rows shown only where a run measures them (the verdicts of some tolerances measure them)
+_OPTIONAL = ("thickness_removed", "gap_filled")
 
 
 def _fmt(v) -> str:
@@ -55,6 +59,8 @@ def format_table(result: dict, feasibility: str | None = None) -> str:
     ]
     for k in _ROWS:
         vals = [s.get(k) for s in result.get("shapes", []) if s.get(k) is not None]
+        if k in _OPTIONAL and not vals:
+            continue
         lo = min(vals) if vals else None
         hi = max(vals) if vals else None
         lines.append(f"| {METRIC_LABELS[k]} | {_fmt(result['mean'].get(k))} | {_fmt(lo)} | {_fmt(hi)} |")
@@ -72,6 +78,8 @@ def format_comparison_table(results: list[dict], names: list[str]) -> str:
     lines = ["| metric | " + " | ".join(names) + " |", "|---|" + "---|" * len(names)]
     lines.append("| shapes | " + " | ".join(str(r.get("n_shapes")) for r in results) + " |")
     for k in _ROWS:
+        if k in _OPTIONAL and all(r["mean"].get(k) is None for r in results):
+            continue
         lines.append(f"| {METRIC_LABELS[k]} | " + " | ".join(_fmt(r["mean"].get(k)) for r in results) + " |")
     lines.append(
         f"| {METRIC_LABELS['diversity_mean']} | " + " | ".join(_fmt(r.get("diversity_mean")) for r in results) + " |"

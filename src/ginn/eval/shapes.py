@@ -104,7 +104,9 @@ def evaluate_shapes(
         t = time.perf_counter()
         div = diversity_from_matrix(chamfer_matrix([boundaries[i] for i in keep], [samples[i] for i in keep]))
         tm["diversity_mean"] = tm.get("diversity_mean", 0.0) + time.perf_counter() - t
-    mean = {k: _mean([s.get(k) for s in shapes]) for k in METRIC_NAMES}
+    measured_by_verdicts = sorted({k for s in shapes for k, v in s.extra.items()
+                                   if isinstance(v, (int, float)) and not isinstance(v, bool)})
+    mean = {k: _mean([s.get(k) for s in shapes]) for k in (*METRIC_NAMES, *measured_by_verdicts)}
     summary = summarize(shapes, problem, div, judges)
     return ShapeEvaluation(problem.name, shapes, mean, div, summary, verdicts=judges)
 

@@ -22,6 +22,19 @@ class VolumeBounds:
 
 
 @dataclass(frozen=True)
+class FeatureSize:
+    """A least feature size: every ball of diameter ``size`` (a length in the problem's
+    coordinates) must fit, up to a share ``removed`` of the shape's volume
+    (:func:`ginn.extract.morphology.opening_removed`).
+
+    For the solid (``tolerances.min_thickness``) the morphological opening by the ball may remove at
+    most that share; for the void (``tolerances.min_gap``) the closing may add at most that share."""
+
+    size: float
+    removed: float = 0.01
+
+
+@dataclass(frozen=True)
 class Tolerances:
     """When a shape counts as feasible (:mod:`ginn.eval.feasibility`), in the problem's units.
 
@@ -38,6 +51,8 @@ class Tolerances:
         symmetry: bound of the symmetry error (:func:`ginn.eval.metrics.symmetry_error`) in units
             of ``unit_scale``, where the problem states a symmetry.
         volume_fraction: bounds on each shape's volume as a fraction of E (None: free).
+        min_thickness: the least thickness of the solid (None: free).
+        min_gap: the least width of the gaps and holes between parts of the solid (None: free).
     """
 
     interface: float = 5e-3
@@ -47,6 +62,8 @@ class Tolerances:
     symmetry: float = 5e-3
     diversity: float | None = None
     volume_fraction: VolumeBounds | None = None
+    min_thickness: FeatureSize | None = None
+    min_gap: FeatureSize | None = None
 
 
 @dataclass(frozen=True)

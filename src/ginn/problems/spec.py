@@ -26,7 +26,7 @@ from .derived import derived_defaults, half_longest_side
 from .forced import forced_holes, forced_tunnels
 from .interfaces import INTERFACE_TYPES, InterfaceSpec
 from .nodes import Dir3, Direction, Fraction, Node, NonNegative, Point, Positive, check_lo_hi, spec_dim
-from .problem import Problem, Tolerances, Topology, VolumeBounds
+from .problem import FeatureSize, Problem, Tolerances, Topology, VolumeBounds
 from .regions import REGION_TYPES, RegionSpec
 from .symmetric import check_symmetric
 
@@ -74,6 +74,18 @@ class VolumeFractionSpec(Node):
         return VolumeBounds(self.min, self.max)
 
 
+class FeatureSizeSpec(Node):
+    """A least feature size (:class:`~ginn.problems.problem.FeatureSize`)."""
+
+    size: Positive = Field(description="the diameter of the ball that must fit, a length in the problem's coordinates")
+    removed: Annotated[float, Field(ge=0, lt=1, allow_inf_nan=False)] = Field(
+        0.01, description="the share of the shape's volume the opening may remove (min_thickness) or the closing "
+        "may add (min_gap)")
+
+    def build(self) -> FeatureSize:
+        return FeatureSize(self.size, self.removed)
+
+
 class TolerancesSpec(Node):
     """When a shape is feasible (:class:`~ginn.problems.problem.Tolerances`)."""
 
@@ -92,10 +104,23 @@ class TolerancesSpec(Node):
         None, description="bounds on each shape's volume inside E as a fraction of vol(E) (E: the domain where "
         "there is no design region): {max: 0.3}, {min: 0.2}, or both; a number is the largest fraction")
 
+    min_thickness: FeatureSizeSpec | None = Field(
+        None, description="the least thickness of the solid: a ball of diameter size fits at every point of it "
+        "(the morphological opening by the ball keeps all but the share removed of its volume): {size: 0.05}, "
+        "{size: 0.05, removed: 0.01}; a number is size")
+    min_gap: FeatureSizeSpec | None = Field(
+        None, description="the least width of every gap and hole: the same for the void (the closing by the ball "
+        "adds at most the share removed of the shape's volume); a number is size")
+
     @field_validator("volume_fraction", mode="before")
     @classmethod
     def _number_is_max(cls, v: Any) -> Any:
         return {"max": v} if isinstance(v, (int, float)) and not isinstance(v, bool) else v
+
+    @field_validator("min_thickness", "min_gap", mode="before")
+    @classmethod
+    def _number_is_size(cls, v: Any) -> Any:
+        return {"size": v} if isinstance(v, (int, float)) and not isinstance(v, bool) else v
 
 
 Count = Annotated[int, Field(ge=0, strict=True)]
@@ -307,6 +332,12 @@ class ProblemSpec(BaseModel):
 
     # -- geometry --
 
+    def _tolerances(self) -> Tolerances:
+        t = self.tolerances
+        built = {k: getattr(t, k) and getattr(t, k).build() for k in ("volume_fraction", "min_thickness", "min_gap")}
+        return Tolerances(**{**t.model_dump(exclude=set(built)), **built,
+                             "connected": t.connected or self.topology.components == 1})
+
     def build(self) -> Problem:
         """The :class:`Problem` (loads meshes; checks interfaces and obstacles against the domain).
 
@@ -356,10 +387,7 @@ class ProblemSpec(BaseModel):
             obstacles=obstacles,
             interface_band=float(g.interface_band),
             unit_scale=unit_scale,
-            tolerances=Tolerances(**{**self.tolerances.model_dump(exclude={"volume_fraction"}),
-                                     "connected": self.tolerances.connected or self.topology.components == 1,
-                                     "volume_fraction": self.tolerances.volume_fraction
-                                     and self.tolerances.volume_fraction.build()}),
+            tolerances=self._tolerances(),
             topology=self.topology.build(dim),
             symmetry=symmetry,
             description=self.description,

@@ -1,0 +1,150 @@
+"""Least feature sizes: every part of the solid at least ``t`` thick (``tolerances.min_thickness``)
+and every gap and hole at least ``t`` wide (``tolerances.min_gap``).
+
+Verdict: the share of the shape's volume that the morphological opening by a ball of diameter
+``t`` removes (``thickness_removed``), or that the closing adds (``gap_filled``), measured on the
+evaluation grid (:mod:`ginn.extract.morphology`), at most the spec's ``removed``.
+
+Loss: the inner-normal segment test. A ball of diameter ``t`` that touches the boundary at ``p``
+from inside holds the segment from ``p`` to ``p - t n`` (``n`` the outward unit normal); where the
+solid is thinner than ``t`` that segment leaves it. So at each surface sample ``p`` (the points
+projected onto ``f = 0``, :meth:`ginn.constraints.Batch.surface`) the field is read at ``p - s n``
+for ``s = t/4, t/2, 3t/4, t`` and the loss is the mean of ``relu(f)`` there: where a neck, a plate
+or a tip is thinner than ``t`` the far side of it lies on the segment, and the penalty lowers the
+field there, growing the solid on that side until the segment stays inside. It reads only the
+sign of ``f`` along the segment, so it holds for a field that is not a distance. For the gaps it
+is the same outward: ``relu(-f)`` at ``p + s n``, where the segment crosses another part of the
+solid. An exact penalty (power 1) in units of length, like the containment terms; the checks raise
+its multiplier while the verdict is violated.
+
+The opening also rounds every convex corner (a right angle loses ``(1 - pi / 4) (t / 2)^2`` of
+area), which the segment test does not see: that share is what ``removed`` allows.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import torch
+from torch import Tensor
+
+from .. import fields
+from ..extract.morphology import closing_added, opening_removed
+from ..problems.problem import FeatureSize, Problem
+from .base import Constraint, Setting, Stage
+from .batch import Batch
+from .samples import DOMAIN
+from .verdict import Verdict, Violation, number_text
+
+__all__ = ["MinThicknessVerdict", "MinGapVerdict", "MinThickness", "MinGap", "SEGMENT_FRACTIONS"]
+
+#: where along the normal segment of length ``t`` the field is read, as fractions of ``t``
+SEGMENT_FRACTIONS = (0.25, 0.5, 0.75, 1.0)
+
+
+class _FeatureVerdict(Verdict):
+    """A share of the shape's volume at most the bound ``removed`` (module docstring)."""
+
+    metric: str = ""
+
+    def __init__(self, problem: Problem):
+        super().__init__(problem)
+        self.metrics = (self.metric,)
+        self.bound: FeatureSize = getattr(problem.tolerances, self.name)
+
+    def _value(self, inside, spacing, weights) -> float | None:
+        raise NotImplementedError
+
+    def measure(self, shape, context, field, z) -> dict[str, Any]:
+        return {self.metric: self._value(shape.inside, context.grid.spacing, context.weights)}
+
+    def violation(self, metrics: Mapping) -> Violation | None:
+        v = metrics.get(self.metric)
+        if v is None or v <= self.bound.removed:
+            return None
+        return Violation(float(v), self.bound.removed)
+
+    def ratio(self, metrics: Mapping) -> float | None:
+        v = metrics.get(self.metric)
+        if v is None:
+            return None
+        return v / self.bound.removed if self.bound.removed > 0 else (float("inf") if v > 0 else 0.0)
+
+    @classmethod
+    def describe(cls, v: Violation) -> str:
+        return f"{cls.name}: {cls.metric} {number_text(v.value)} > {number_text(v.bound)}"
+
+
+class MinThicknessVerdict(_FeatureVerdict):
+    """``thickness_removed``, the share of the volume the opening by the ball removes, within bound."""
+
+    name = "min_thickness"
+    metric = "thickness_removed"
+
+    def _value(self, inside, spacing, weights):
+        return opening_removed(inside, spacing, self.bound.size, weights)
+
+
+class MinGapVerdict(_FeatureVerdict):
+    """``gap_filled``, the volume the closing by the ball adds over the shape's, within bound."""
+
+    name = "min_gap"
+    metric = "gap_filled"
+
+    def _value(self, inside, spacing, weights):
+        return closing_added(inside, spacing, self.bound.size, weights)
+
+
+class _Segments(Constraint):
+    """The normal segment test (module docstring); ``sign`` -1 reads inward (the solid), +1
+    outward (the void)."""
+
+    stage = Stage.FIELD
+    samples = (DOMAIN,)
+    sign = -1.0
+    verdict_type: type[_FeatureVerdict] = MinThicknessVerdict
+
+    def __init__(self, setting: Setting):
+        super().__init__(setting)
+        self._verdict = self.verdict_type(setting.problem)
+        self.size = self._verdict.bound.size
+
+    @property
+    def verdict(self) -> _FeatureVerdict:
+        return self._verdict
+
+    def loss(self, batch: Batch) -> Tensor | None:
+        srf = batch.surface()
+        ok = srf.converged.reshape(-1)
+        if not bool(ok.any()):
+            return None
+        p = srf.x.reshape(-1, batch.d)[ok]  # (m, d)
+        z = None if batch.Z is None else batch.latents_of(srf.x)[ok]
+        n = fields.evaluate(batch.model, p, z, grad=True, create_graph=False).grad
+        n = n / n.norm(dim=-1, keepdim=True).clamp_min(1e-12)
+        s = torch.tensor(SEGMENT_FRACTIONS, device=p.device, dtype=p.dtype) * self.size  # (K,)
+        q = (p[:, None, :] + self.sign * s[None, :, None] * n[:, None, :]).reshape(-1, batch.d)  # (m K, d)
+        zq = None if z is None else z.repeat_interleave(len(s), dim=0)
+        f = batch.model(q, zq)
+        return torch.relu(-self.sign * f).mean()
+
+    def target(self) -> float:
+        """0: no segment leaves the solid (the void)."""
+        return 0.0
+
+
+class MinThickness(_Segments):
+    """Every part of the solid at least ``min_thickness.size`` thick (module docstring)."""
+
+    name = "thickness"
+    sign = -1.0
+    verdict_type = MinThicknessVerdict
+
+
+class MinGap(_Segments):
+    """Every gap and hole at least ``min_gap.size`` wide (module docstring)."""
+
+    name = "gap"
+    sign = 1.0
+    verdict_type = MinGapVerdict

@@ -1,0 +1,131 @@
+"""Least feature sizes: the opening and closing on a grid against closed forms, the normal segment
+loss on fields whose values along the segments are known, the spec and the verdicts."""
+
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from ginn.constraints import MinGap, MinGapVerdict, MinThickness, MinThicknessVerdict
+from ginn.errors import SpecError
+from ginn.extract.grid import Grid
+from ginn.extract.morphology import closing_added, opening, opening_removed
+from ginn.problems import FeatureSize, validate_spec
+from ginn.tasks import make_task
+
+
+def _grid(lo=(-1.2, -0.5), hi=(1.2, 0.5), cells=(1200, 500)):
+    g = Grid(np.array(lo, dtype=float), np.array(hi, dtype=float), cells)
+    return g, g.points().reshape(*g.shape, 2), g.node_weights()
+
+
+def test_a_bar_thinner_than_the_ball_is_removed_whole_and_a_thick_one_loses_its_corners():
+    g, x, w = _grid()
+    thin = (np.abs(x[..., 0]) <= 1.0) & (np.abs(x[..., 1]) <= 0.025)  # 0.05 thick
+    assert opening_removed(thin, g.spacing, 0.1, w) == 1.0
+    thick = (np.abs(x[..., 0]) <= 1.0) & (np.abs(x[..., 1]) <= 0.2)  # 0.4 thick, 2 long
+    r = 0.15  # a ball of diameter 0.3: each right-angled corner loses (1 - pi / 4) r^2
+    expected = (4 - math.pi) * r * r / (2.0 * 0.4)
+    assert opening_removed(thick, g.spacing, 2 * r, w) == pytest.approx(expected, rel=0.1)
+    assert opening_removed(thick, g.spacing, 0.1, w) < 0.01  # 0.2 thick and more: within 1 %
+
+
+def test_a_disk_wider_than_the_ball_is_kept():
+    g, x, w = _grid()
+    disk = np.hypot(x[..., 0], x[..., 1]) <= 0.3
+    assert opening_removed(disk, g.spacing, 0.2, w) < 1e-3
+    assert opening(disk, g.spacing, 0.7).sum() == 0  # a ball wider than the disk fits nowhere
+
+
+def test_a_face_of_the_domain_cuts_without_thinning():
+    """A bar that runs out through the domain's face keeps its corners there: only the two far
+    corners are rounded."""
+    g, x, w = _grid()
+    bar = (x[..., 0] >= 0.0) & (np.abs(x[..., 1]) <= 0.2)
+    r = 0.15
+    expected = (2 - math.pi / 2) * r * r / (1.2 * 0.4)
+    assert opening_removed(bar, g.spacing, 2 * r, w) == pytest.approx(expected, rel=0.1)
+
+
+def test_the_closing_fills_a_slot_narrower_than_the_ball_only():
+    g, x, w = _grid()
+    slot = (np.abs(x[..., 1]) <= 0.02) & (x[..., 0] > 0)
+    disk = (np.hypot(x[..., 0], x[..., 1]) <= 0.4) & ~slot
+    area = math.pi * 0.4**2 - 0.04 * 0.4
+    assert closing_added(disk, g.spacing, 0.1, w) == pytest.approx(0.04 * 0.4 / area, rel=0.1)
+    assert closing_added(disk, g.spacing, 0.03, w) < 1e-3
+
+
+def test_the_opening_is_the_same_with_unequal_spacing():
+    """The ball is a ball in world units on a grid with other spacings along the axes."""
+    g1, x1, w1 = _grid(cells=(1200, 500))
+    g2, x2, w2 = _grid(cells=(600, 500))
+    v = [opening_removed((np.abs(x[..., 0]) <= 1.0) & (np.abs(x[..., 1]) <= 0.2), g.spacing, 0.3, w)
+         for g, x, w in ((g1, x1, w1), (g2, x2, w2))]
+    assert v[0] == pytest.approx(v[1], rel=0.15)
+
+
+# --- spec ----------------------------------------------------------------------------------------
+
+SPEC = {"name": "slab", "geometry": {
+    "dim": 2, "domain": {"lo": [-1, -1], "hi": [1, 1]},
+    "interfaces": [{"type": "segment", "a": [-0.9, -0.01], "b": [-0.9, 0.01], "normal": [-1, 0]}]}}
+
+
+def _spec(**tol):
+    return validate_spec({**SPEC, "tolerances": tol})
+
+
+def test_spec_reads_a_number_as_the_size_and_checks_the_share():
+    t = _spec(min_thickness=0.1, min_gap={"size": 0.05, "removed": 0.02}).build().tolerances
+    assert t.min_thickness == FeatureSize(0.1, 0.01) and t.min_gap == FeatureSize(0.05, 0.02)
+    for bad, field in (({"min_thickness": -0.1}, "min_thickness"), ({"min_gap": {"size": 0.1, "removed": 1.0}}, "min_gap"),
+                       ({"min_thickness": {"removed": 0.1}}, "min_thickness"), ({"min_gap": True}, "min_gap")):
+        with pytest.raises(SpecError, match=field):
+            _spec(**bad)
+
+
+def test_verdicts_compare_the_share_with_its_bound():
+    p = _spec(min_thickness=0.1, min_gap={"size": 0.05, "removed": 0.02}).build()
+    vt, vg = MinThicknessVerdict(p), MinGapVerdict(p)
+    assert vt.violation({"thickness_removed": 0.005}) is None
+    bad = vt.violation({"thickness_removed": 0.03})
+    assert (bad.value, bad.bound) == (0.03, 0.01) and vt.ratio({"thickness_removed": 0.03}) == pytest.approx(3.0)
+    assert vg.violation({"gap_filled": 0.03}).bound == 0.02 and vg.ratio({"gap_filled": 0.01}) == pytest.approx(0.5)
+    assert "min_thickness" in MinThicknessVerdict.describe(bad)
+
+
+# --- the normal segment loss ---------------------------------------------------------------------
+
+
+class _Slab(torch.nn.Module):
+    """The signed distance of the slab |y| <= w / 2 (``sign`` -1: of its complement)."""
+
+    def __init__(self, w, sign=1.0):
+        super().__init__()
+        self.w, self.sign = w, sign
+        self.p = torch.nn.Parameter(torch.zeros(()))
+
+    def forward(self, x, z=None):
+        return self.sign * (x[:, 1].abs() - 0.5 * self.w) + 0 * self.p
+
+
+def _loss(task, model, name):
+    terms = task.loss_terms(model, 0, {name, "eikonal"}, torch.Generator().manual_seed(0))
+    return float(terms[name].detach())
+
+
+@pytest.mark.parametrize("w, expected", [(0.04, (0.0 + 0.01 + 0.035 + 0.06) / 4), (0.2, 0.0)])
+def test_segments_leave_a_thinner_solid_by_known_depths(w, expected):
+    """Slab of width w, ball of diameter 0.1: the inner segment of each surface point reads the
+    field at depths s = 0.025 ... 0.1, where it is |w / 2 - s| - w / 2."""
+    spec = _spec(min_thickness=0.1, min_gap=0.1)
+    cfg = spec.config(None, {"sampling": {"n_domain": 2048, "n_boundary": 64}})
+    task = make_task(spec, cfg)
+    assert [c for c in task.constraints if isinstance(c, MinThickness)]
+    assert _loss(task, _Slab(w), "thickness") == pytest.approx(expected, abs=1e-5)
+    # the void between two half-planes, |y| >= w / 2 solid: the same numbers outward
+    assert [c for c in task.constraints if isinstance(c, MinGap)]
+    assert _loss(task, _Slab(w, -1.0), "gap") == pytest.approx(expected, abs=1e-5)
+    assert _loss(task, _Slab(w, -1.0), "thickness") == pytest.approx(0.0, abs=1e-7)  # the solid is wide
