@@ -20,6 +20,7 @@ from .feature_size import MinGap, MinGapVerdict, MinThickness, MinThicknessVerdi
 from .holes import BETTI_METRICS, HoleTargets, TopologyTargets
 from .interface import Interface, InterfaceVerdict
 from .normal import Normal
+from .overhang import Overhang, OverhangVerdict
 from .samples import BAND, BUILTIN_SETS, DOMAIN, INTERFACE, OBSTACLE, OUTSIDE, SampleSet
 from .symmetry import SymmetryVerdict
 from .verdict import Verdict, Violation
@@ -29,9 +30,9 @@ __all__ = [
     "Constraint", "Setting", "Stage", "Batch", "Surface", "SampleSet", "Verdict", "Violation",
     "DOMAIN", "OUTSIDE", "OBSTACLE", "INTERFACE", "BAND", "BUILTIN_SETS",
     "Eikonal", "DesignRegion", "Obstacle", "Interface", "Normal", "MeanCurvature", "Strain", "Diversity",
-    "Connectedness", "HoleTargets", "VolumeFraction", "MinThickness", "MinGap",
+    "Connectedness", "HoleTargets", "VolumeFraction", "MinThickness", "MinGap", "Overhang",
     "InterfaceVerdict", "VolumeOutside", "Connected", "TopologyTargets", "SymmetryVerdict", "LeastDiversity",
-    "VolumeFractionVerdict", "MinThicknessVerdict", "MinGapVerdict",
+    "VolumeFractionVerdict", "MinThicknessVerdict", "MinGapVerdict", "OverhangVerdict",
     "BETTI_METRICS", "containment_floor", "judged_volume_outside",
     "shape_constraints", "problem_verdicts", "verdicts_of", "describe", "verdict_text",
 ]

@@ -27,12 +27,13 @@ METRIC_LABELS = {
     "symmetry_error": "↓ symmetry error",
     "thickness_removed": "↓ vol(Ω minus its opening by the min-thickness ball) / vol(Ω)",
     "gap_filled": "↓ vol(closing of Ω by the min-gap ball minus Ω) / vol(Ω)",
+    "overhang_share": "↓ overhanging share of the down-facing boundary",
     "diversity_mean": "↑ δ_mean(S)",
 }
 
 _ROWS = tuple(k for k in METRIC_LABELS if k != "diversity_mean")
 #: rows shown only where a run measures them (the verdicts of some tolerances measure them)
-_OPTIONAL = ("thickness_removed", "gap_filled")
+_OPTIONAL = ("thickness_removed", "gap_filled", "overhang_share")
 
 
 def _fmt(v) -> str:

@@ -35,6 +35,27 @@ class FeatureSize:
 
 
 @dataclass(frozen=True)
+class Overhang:
+    """A largest overhang for additive manufacturing: no surface may face down by more than
+    ``angle`` degrees below the horizontal (its outward normal ``n`` with ``-n . up > sin(angle)``),
+    up to a share ``share`` of the down-facing area, except on the build plate (the boundary within
+    the interface tolerance of the height ``plate`` along ``up``) and at the interfaces
+    (:func:`ginn.extract.overhang.overhang_share`).
+
+    Attributes:
+        angle: degrees, in (0, 90).
+        up: the build direction, a unit vector ``(d,)``.
+        plate: the build plate's height along ``up`` (None: the domain's lowest).
+        share: the largest share of the down-facing area in violation.
+    """
+
+    angle: float
+    up: tuple[float, ...]
+    plate: float | None = None
+    share: float = 0.01
+
+
+@dataclass(frozen=True)
 class Tolerances:
     """When a shape counts as feasible (:mod:`ginn.eval.feasibility`), in the problem's units.
 
@@ -53,6 +74,7 @@ class Tolerances:
         volume_fraction: bounds on each shape's volume as a fraction of E (None: free).
         min_thickness: the least thickness of the solid (None: free).
         min_gap: the least width of the gaps and holes between parts of the solid (None: free).
+        overhang: the largest overhang for additive manufacturing (None: free).
     """
 
     interface: float = 5e-3
@@ -64,6 +86,7 @@ class Tolerances:
     volume_fraction: VolumeBounds | None = None
     min_thickness: FeatureSize | None = None
     min_gap: FeatureSize | None = None
+    overhang: Overhang | None = None
 
 
 @dataclass(frozen=True)

@@ -11,6 +11,7 @@ checking that the interfaces lie in the domain), with the same kind of errors;
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -25,8 +26,8 @@ from ..geometry.symmetry import Mirror, Rotation, Symmetry
 from .derived import derived_defaults, half_longest_side
 from .forced import forced_holes, forced_tunnels
 from .interfaces import INTERFACE_TYPES, InterfaceSpec
-from .nodes import Dir3, Direction, Fraction, Node, NonNegative, Point, Positive, check_lo_hi, spec_dim
-from .problem import FeatureSize, Problem, Tolerances, Topology, VolumeBounds
+from .nodes import Dir3, Direction, Finite, Fraction, Node, NonNegative, Point, Positive, check_lo_hi, spec_dim
+from .problem import FeatureSize, Overhang, Problem, Tolerances, Topology, VolumeBounds
 from .regions import REGION_TYPES, RegionSpec
 from .symmetric import check_symmetric
 
@@ -86,6 +87,24 @@ class FeatureSizeSpec(Node):
         return FeatureSize(self.size, self.removed)
 
 
+class OverhangSpec(Node):
+    """A largest overhang angle for additive manufacturing (:class:`~ginn.problems.problem.Overhang`)."""
+
+    angle: Annotated[float, Field(gt=0, lt=90, allow_inf_nan=False)] = Field(
+        description="degrees below the horizontal that a down-facing surface may reach (45: the usual "
+        "self-supporting limit)")
+    up: Direction = Field(description="the build direction (need not be a unit vector)")
+    plate: Finite | None = Field(
+        None, description="the build plate's height along up (default: the domain's lowest point along up); the "
+        "boundary on it is exempt")
+    share: Annotated[float, Field(ge=0, lt=1, allow_inf_nan=False)] = Field(
+        0.01, description="the largest share of the down-facing boundary that may overhang")
+
+    def build(self) -> Overhang:
+        n = math.sqrt(sum(c * c for c in self.up))
+        return Overhang(float(self.angle), tuple(float(c) / n for c in self.up), self.plate, float(self.share))
+
+
 class TolerancesSpec(Node):
     """When a shape is feasible (:class:`~ginn.problems.problem.Tolerances`)."""
 
@@ -111,6 +130,10 @@ class TolerancesSpec(Node):
     min_gap: FeatureSizeSpec | None = Field(
         None, description="the least width of every gap and hole: the same for the void (the closing by the ball "
         "adds at most the share removed of the shape's volume); a number is size")
+    overhang: OverhangSpec | None = Field(
+        None, description="additive manufacturing: {angle: 45, up: [0, 0, 1]}: no surface faces down by more than "
+        "angle degrees below the horizontal, up to share (0.01) of the down-facing boundary; the build plate and "
+        "the interfaces are exempt")
 
     @field_validator("volume_fraction", mode="before")
     @classmethod
@@ -334,7 +357,8 @@ class ProblemSpec(BaseModel):
 
     def _tolerances(self) -> Tolerances:
         t = self.tolerances
-        built = {k: getattr(t, k) and getattr(t, k).build() for k in ("volume_fraction", "min_thickness", "min_gap")}
+        built = {k: getattr(t, k) and getattr(t, k).build()
+                 for k in ("volume_fraction", "min_thickness", "min_gap", "overhang")}
         return Tolerances(**{**t.model_dump(exclude=set(built)), **built,
                              "connected": t.connected or self.topology.components == 1})
 

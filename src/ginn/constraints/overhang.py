@@ -1,0 +1,132 @@
+"""The largest overhang for additive manufacturing (``tolerances.overhang``): no surface faces
+down by more than ``angle`` below the horizontal along the build direction ``up``, except on the
+build plate and at the interfaces.
+
+Verdict: ``overhang_share``, the share of the down-facing boundary of the extracted shape that
+overhangs (:func:`ginn.extract.overhang.overhang_share`), at most ``share``. The plate is the
+height ``plate`` along ``up`` (the domain's lowest point along ``up`` when the spec gives none);
+the plate and the interfaces are exempt within the interface tolerance
+``tolerances.interface * unit_scale``.
+
+Loss: at the surface samples (points projected onto ``f = 0``) that are not exempt, the mean of
+``relu(-n . up - sin(angle))``, ``n = grad f / |grad f|`` differentiable w.r.t. the parameters:
+how far each normal points down beyond the limit. It rotates the normals of the overhanging parts
+towards the limit, which raises their underside into a self-supporting slope; a normal has no
+scale, so its weight is a number like the prescribed normals'.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from .. import fields
+from ..extract.overhang import exempt_elements, overhang_share
+from ..problems.problem import Overhang as OverhangBound
+from ..problems.problem import Problem
+from .base import Constraint, Setting, Stage
+from .batch import Batch
+from .samples import DOMAIN
+from .verdict import Verdict, Violation, number_text
+
+__all__ = ["OverhangVerdict", "Overhang", "plate_height"]
+
+
+def plate_height(problem: Problem, bound: OverhangBound) -> float:
+    """The build plate's height along ``up``: the spec's, or the domain's lowest point along it."""
+    if bound.plate is not None:
+        return float(bound.plate)
+    lo, hi = problem.domain.lo, problem.domain.hi
+    return float(sum(min(u * a, u * b) for u, a, b in zip(bound.up, lo, hi)))
+
+
+def exempt_distance(problem: Problem) -> float:
+    """How near the plate or an interface a surface is exempt: the interface tolerance."""
+    return float(problem.tolerances.interface) * float(problem.unit_scale)
+
+
+class OverhangVerdict(Verdict):
+    """``overhang_share`` at most ``tolerances.overhang.share`` (module docstring)."""
+
+    name = "overhang"
+
+    def __init__(self, problem: Problem):
+        super().__init__(problem)
+        self.metrics = ("overhang_share",)
+        self.bound: OverhangBound = problem.tolerances.overhang
+        self.plate = plate_height(problem, self.bound)
+
+    def measure(self, shape, context, field, z) -> dict[str, Any]:
+        b = shape.boundary
+        up = np.asarray(self.bound.up, dtype=np.float64)
+        exempt = exempt_elements(b, up, self.plate, exempt_distance(self.problem), self.problem.interfaces)
+        return {"overhang_share": overhang_share(b, self.bound.up, self.bound.angle, exempt)}
+
+    def violation(self, metrics: Mapping) -> Violation | None:
+        v = metrics.get("overhang_share")
+        if v is None or v <= self.bound.share:
+            return None
+        return Violation(float(v), self.bound.share)
+
+    def ratio(self, metrics: Mapping) -> float | None:
+        v = metrics.get("overhang_share")
+        if v is None:
+            return None
+        return v / self.bound.share if self.bound.share > 0 else (math.inf if v > 0 else 0.0)
+
+    @classmethod
+    def describe(cls, v: Violation) -> str:
+        return f"overhang: {number_text(v.value)} of the down-facing boundary > {number_text(v.bound)}"
+
+
+class Overhang(Constraint):
+    """No surface facing down beyond the overhang angle (module docstring)."""
+
+    name = "overhang"
+    stage = Stage.FIELD
+    samples = (DOMAIN,)
+
+    def __init__(self, setting: Setting):
+        super().__init__(setting)
+        self._verdict = OverhangVerdict(setting.problem)
+        b = self._verdict.bound
+        self.up = torch.tensor(b.up, device=setting.device, dtype=setting.dtype)
+        self.limit = math.sin(math.radians(b.angle))
+        self.plate = self._verdict.plate
+        self.tol = exempt_distance(setting.problem)
+
+    @property
+    def verdict(self) -> OverhangVerdict:
+        return self._verdict
+
+    def _exempt(self, p: Tensor) -> Tensor:
+        """``(m,)`` bool: surface points on the plate or near an interface."""
+        out = ((p @ self.up) - self.plate).abs() <= self.tol
+        for itf in self.setting.problem.interfaces:
+            try:
+                out |= itf.distance(p) <= self.tol
+            except NotImplementedError:
+                continue
+        return out
+
+    def loss(self, batch: Batch) -> Tensor | None:
+        srf = batch.surface()
+        ok = srf.converged.reshape(-1)
+        p = srf.x.reshape(-1, batch.d)
+        with torch.no_grad():
+            ok = ok & ~self._exempt(p)
+        if not bool(ok.any()):
+            return None
+        z = None if batch.Z is None else batch.latents_of(srf.x)[ok]
+        g = fields.evaluate(batch.model, p[ok], z, grad=True, create_graph=True).grad
+        n = g / g.norm(dim=-1, keepdim=True).clamp_min(1e-12)
+        return torch.relu(-(n @ self.up) - self.limit).mean()
+
+    def target(self) -> float:
+        """0: no surface sample overhangs."""
+        return 0.0

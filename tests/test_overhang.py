@@ -1,0 +1,106 @@
+"""The overhang for additive manufacturing: the measured share against closed forms (sphere,
+circle), the exemptions (build plate, interfaces, domain caps), the loss on fields whose normals
+are known, the spec and the verdict."""
+
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from ginn.constraints import Overhang, OverhangVerdict
+from ginn.errors import SpecError
+from ginn.extract.boundary import extract_boundary
+from ginn.extract.grid import Grid
+from ginn.extract.overhang import element_normals, exempt_elements, overhang_share
+from ginn.problems import validate_spec
+from ginn.tasks import make_task
+
+
+def _boundary(f, lo, hi, cells):
+    g = Grid(np.array(lo, dtype=float), np.array(hi, dtype=float), cells)
+    x = g.points().reshape(*g.shape, len(cells))
+    return extract_boundary(f(x).astype(np.float32), g)
+
+
+@pytest.mark.parametrize("angle", [30.0, 45.0, 60.0])
+def test_a_sphere_overhangs_on_one_minus_sine_of_its_lower_half(angle):
+    b = _boundary(lambda x: np.linalg.norm(x, axis=-1) - 0.6, [-1] * 3, [1] * 3, (96, 96, 96))
+    assert overhang_share(b, [0, 0, 2.0], angle) == pytest.approx(1 - math.sin(math.radians(angle)), abs=0.01)
+
+
+def test_a_circle_overhangs_on_one_minus_angle_over_ninety_of_its_lower_half():
+    b = _boundary(lambda x: np.linalg.norm(x, axis=-1) - 0.6, [-1, -1], [1, 1], (512, 512))
+    n, c = element_normals(b), b.vertices[b.elements].mean(axis=1)
+    assert np.all(np.sum(n * c, axis=1) > 0)  # outward
+    assert overhang_share(b, [0, 1], 45.0) == pytest.approx(0.5, abs=0.01)
+    assert overhang_share(b, [1, 0], 30.0) == pytest.approx(1 - 30 / 90, abs=0.01)  # another build direction
+
+
+def test_a_box_on_the_plate_is_exempt_underneath_and_a_floating_one_overhangs_there():
+    box = lambda x: np.max(np.abs(x - np.array([0.0, 0.0, -0.2])) - np.array([0.3, 0.3, 0.3]), axis=-1)  # noqa: E731
+    b = _boundary(box, [-1] * 3, [1] * 3, (160, 160, 160))
+    up = np.array([0.0, 0.0, 1.0])
+    # all it faces down with is its bottom, less the grid's bevel of the bottom edges (at 45
+    # degrees, about 4.6 % of the down-facing area at this cell size, proportional to it)
+    assert 0.94 < overhang_share(b, up, 45.0) < 1.0
+    on_plate = exempt_elements(b, up, plate=-0.5, tol=2 / 160)
+    assert overhang_share(b, up, 45.0, on_plate) is None  # nothing left that faces down
+    assert overhang_share(b, up, 45.0, exempt_elements(b, up, plate=-0.9, tol=2 / 160)) > 0.94
+
+
+def test_the_domain_cap_is_no_surface():
+    """A bar cut by the domain's bottom face: the cap there is exempt, its sides are vertical."""
+    b = _boundary(lambda x: np.maximum(np.abs(x[..., 0]) - 0.2, x[..., 1] - 0.5), [-1, -1], [1, 1], (256, 256))
+    ex = exempt_elements(b, np.array([0.0, 1.0]), plate=-5.0, tol=0.01)
+    assert ex.any() and overhang_share(b, [0, 1], 45.0, ex) is None
+
+
+SPEC = {"name": "ramp", "geometry": {
+    "dim": 2, "domain": {"lo": [-1, -1], "hi": [1, 1]},
+    "interfaces": [{"type": "segment", "a": [-0.9, 0.5], "b": [-0.9, 0.52], "normal": [-1, 0]}]}}
+
+
+def _spec(overhang):
+    return validate_spec({**SPEC, "tolerances": {"overhang": overhang}})
+
+
+def test_spec_normalises_up_and_refuses_bad_angles():
+    o = _spec({"angle": 45, "up": [0, 3]}).build().tolerances.overhang
+    assert o.up == (0.0, 1.0) and o.share == 0.01 and o.plate is None
+    for bad in ({"angle": 90, "up": [0, 1]}, {"angle": 45, "up": [0, 0, 1]}, {"angle": 45, "up": [0, 0]}, {"up": [0, 1]}):
+        with pytest.raises(SpecError, match="tolerances.overhang"):
+            _spec(bad)
+
+
+def test_verdict_reads_the_share_and_the_plate_defaults_to_the_domain_bottom():
+    p = _spec({"angle": 45, "up": [0, 1], "share": 0.02}).build()
+    v = OverhangVerdict(p)
+    assert v.plate == -1.0 and v.violation({"overhang_share": 0.01}) is None
+    bad = v.violation({"overhang_share": 0.05})
+    assert (bad.value, bad.bound) == (0.05, 0.02) and v.ratio({"overhang_share": 0.05}) == pytest.approx(2.5)
+    assert OverhangVerdict(_spec({"angle": 45, "up": [0, -1]}).build()).plate == -1.0  # lowest along -y: y = 1
+
+
+class _Plane(torch.nn.Module):
+    """The signed distance to the line through the origin with unit normal at ``beta`` degrees."""
+
+    def __init__(self, beta):
+        super().__init__()
+        b = math.radians(beta)
+        self.n = torch.nn.Parameter(torch.tensor([math.cos(b), math.sin(b)]))
+
+    def forward(self, x, z=None):
+        return x @ self.n
+
+
+@pytest.mark.parametrize("beta, expected", [(-60.0, math.sin(math.radians(60)) - math.sin(math.radians(45))),
+                                            (-30.0, 0.0), (60.0, 0.0)])
+def test_loss_is_how_far_each_normal_points_down_beyond_the_limit(beta, expected):
+    spec = _spec({"angle": 45, "up": [0, 1]})
+    task = make_task(spec, spec.config(None, {"sampling": {"n_domain": 2048, "n_boundary": 64}}))
+    assert [c for c in task.constraints if isinstance(c, Overhang)]
+    terms = task.loss_terms(_Plane(beta), 0, {"overhang", "eikonal"}, torch.Generator().manual_seed(0))
+    assert float(terms["overhang"].detach()) == pytest.approx(expected, abs=1e-5)
+    if expected > 0:
+        terms["overhang"].backward()  # differentiable w.r.t. the parameters through the normals
