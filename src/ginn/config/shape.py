@@ -33,6 +33,7 @@ class LossesConfig(Strict):
     thickness: LossTerm = LossTerm()
     gap: LossTerm = LossTerm()
     overhang: LossTerm = LossTerm()
+    fillet: LossTerm = LossTerm()
     containment_power: Literal[1, 2] = Field(
         2,
         description="exponent of the design-region and obstacle penalties: 2 is the paper's mean of "

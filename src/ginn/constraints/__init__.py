@@ -17,6 +17,7 @@ from .curvature import MeanCurvature, Strain
 from .diversity import Diversity, LeastDiversity
 from .eikonal import Eikonal
 from .feature_size import MinGap, MinGapVerdict, MinThickness, MinThicknessVerdict
+from .fillet import MinRadius, MinRadiusVerdict
 from .holes import BETTI_METRICS, HoleTargets, TopologyTargets
 from .interface import Interface, InterfaceVerdict
 from .normal import Normal
@@ -30,9 +31,9 @@ __all__ = [
     "Constraint", "Setting", "Stage", "Batch", "Surface", "SampleSet", "Verdict", "Violation",
     "DOMAIN", "OUTSIDE", "OBSTACLE", "INTERFACE", "BAND", "BUILTIN_SETS",
     "Eikonal", "DesignRegion", "Obstacle", "Interface", "Normal", "MeanCurvature", "Strain", "Diversity",
-    "Connectedness", "HoleTargets", "VolumeFraction", "MinThickness", "MinGap", "Overhang",
+    "Connectedness", "HoleTargets", "VolumeFraction", "MinThickness", "MinGap", "Overhang", "MinRadius",
     "InterfaceVerdict", "VolumeOutside", "Connected", "TopologyTargets", "SymmetryVerdict", "LeastDiversity",
-    "VolumeFractionVerdict", "MinThicknessVerdict", "MinGapVerdict", "OverhangVerdict",
+    "VolumeFractionVerdict", "MinThicknessVerdict", "MinGapVerdict", "OverhangVerdict", "MinRadiusVerdict",
     "BETTI_METRICS", "containment_floor", "judged_volume_outside",
     "shape_constraints", "problem_verdicts", "verdicts_of", "describe", "verdict_text",
 ]

@@ -28,12 +28,14 @@ METRIC_LABELS = {
     "thickness_removed": "↓ vol(Ω minus its opening by the min-thickness ball) / vol(Ω)",
     "gap_filled": "↓ vol(closing of Ω by the min-gap ball minus Ω) / vol(Ω)",
     "overhang_share": "↓ overhanging share of the down-facing boundary",
+    "sharp_share": "↓ share of the boundary sharper than the fillet radius",
+    "curvature_max": "largest principal curvature |κ|",
     "diversity_mean": "↑ δ_mean(S)",
 }
 
 _ROWS = tuple(k for k in METRIC_LABELS if k != "diversity_mean")
 #: rows shown only where a run measures them (the verdicts of some tolerances measure them)
-_OPTIONAL = ("thickness_removed", "gap_filled", "overhang_share")
+_OPTIONAL = ("thickness_removed", "gap_filled", "overhang_share", "sharp_share", "curvature_max")
 
 
 def _fmt(v) -> str:

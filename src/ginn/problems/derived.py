@@ -149,6 +149,8 @@ RULES: tuple[Rule, ...] = (
          "as the thickness, outward (only with `tolerances.min_gap`)", "s"),
     Rule("losses.overhang.weight", "10", lambda g: 10.0,
          "unit normals: no scale, as the prescribed normals (only with `tolerances.overhang`)"),
+    Rule("losses.fillet.weight", "1", lambda g: 1.0,
+         "`relu(kappa r - 1)`: no scale (only with `tolerances.min_radius`)"),
     Rule("losses.containment_power", "1", lambda g: 1,
          "the exact penalty cut the obstacle's remaining volume outside E 3.5x at the same CD1; 2 is the paper's "
          "(`docs/obstacle.md`)"),

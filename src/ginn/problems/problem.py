@@ -56,6 +56,16 @@ class Overhang:
 
 
 @dataclass(frozen=True)
+class CurvatureBound:
+    """No edge sharper than a fillet of radius ``radius``: the largest absolute principal curvature
+    of the boundary at most ``1 / radius``, up to a share ``share`` of the boundary (the interfaces
+    exempt; :mod:`ginn.constraints.fillet`)."""
+
+    radius: float
+    share: float = 0.01
+
+
+@dataclass(frozen=True)
 class Tolerances:
     """When a shape counts as feasible (:mod:`ginn.eval.feasibility`), in the problem's units.
 
@@ -75,6 +85,7 @@ class Tolerances:
         min_thickness: the least thickness of the solid (None: free).
         min_gap: the least width of the gaps and holes between parts of the solid (None: free).
         overhang: the largest overhang for additive manufacturing (None: free).
+        min_radius: the smallest radius of curvature of the boundary (None: free).
     """
 
     interface: float = 5e-3
@@ -87,6 +98,7 @@ class Tolerances:
     min_thickness: FeatureSize | None = None
     min_gap: FeatureSize | None = None
     overhang: Overhang | None = None
+    min_radius: CurvatureBound | None = None
 
 
 @dataclass(frozen=True)

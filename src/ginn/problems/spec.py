@@ -27,7 +27,7 @@ from .derived import derived_defaults, half_longest_side
 from .forced import forced_holes, forced_tunnels
 from .interfaces import INTERFACE_TYPES, InterfaceSpec
 from .nodes import Dir3, Direction, Finite, Fraction, Node, NonNegative, Point, Positive, check_lo_hi, spec_dim
-from .problem import FeatureSize, Overhang, Problem, Tolerances, Topology, VolumeBounds
+from .problem import CurvatureBound, FeatureSize, Overhang, Problem, Tolerances, Topology, VolumeBounds
 from .regions import REGION_TYPES, RegionSpec
 from .symmetric import check_symmetric
 
@@ -105,6 +105,17 @@ class OverhangSpec(Node):
         return Overhang(float(self.angle), tuple(float(c) / n for c in self.up), self.plate, float(self.share))
 
 
+class CurvatureBoundSpec(Node):
+    """A smallest radius of curvature (:class:`~ginn.problems.problem.CurvatureBound`)."""
+
+    radius: Positive = Field(description="the smallest fillet radius, a length in the problem's coordinates")
+    share: Annotated[float, Field(ge=0, lt=1, allow_inf_nan=False)] = Field(
+        0.01, description="the largest share of the boundary that may be curved more sharply")
+
+    def build(self) -> CurvatureBound:
+        return CurvatureBound(float(self.radius), float(self.share))
+
+
 class TolerancesSpec(Node):
     """When a shape is feasible (:class:`~ginn.problems.problem.Tolerances`)."""
 
@@ -134,6 +145,10 @@ class TolerancesSpec(Node):
         None, description="additive manufacturing: {angle: 45, up: [0, 0, 1]}: no surface faces down by more than "
         "angle degrees below the horizontal, up to share (0.01) of the down-facing boundary; the build plate and "
         "the interfaces are exempt")
+    min_radius: CurvatureBoundSpec | None = Field(
+        None, description="no edge sharper than a fillet of this radius: every principal curvature of the boundary "
+        "at most 1 / radius in absolute value, up to share (0.01) of the boundary, the interfaces exempt: "
+        "{radius: 0.02}; a number is radius")
 
     @field_validator("volume_fraction", mode="before")
     @classmethod
@@ -144,6 +159,11 @@ class TolerancesSpec(Node):
     @classmethod
     def _number_is_size(cls, v: Any) -> Any:
         return {"size": v} if isinstance(v, (int, float)) and not isinstance(v, bool) else v
+
+    @field_validator("min_radius", mode="before")
+    @classmethod
+    def _number_is_radius(cls, v: Any) -> Any:
+        return {"radius": v} if isinstance(v, (int, float)) and not isinstance(v, bool) else v
 
 
 Count = Annotated[int, Field(ge=0, strict=True)]
@@ -358,7 +378,7 @@ class ProblemSpec(BaseModel):
     def _tolerances(self) -> Tolerances:
         t = self.tolerances
         built = {k: getattr(t, k) and getattr(t, k).build()
-                 for k in ("volume_fraction", "min_thickness", "min_gap", "overhang")}
+                 for k in ("volume_fraction", "min_thickness", "min_gap", "overhang", "min_radius")}
         return Tolerances(**{**t.model_dump(exclude=set(built)), **built,
                              "connected": t.connected or self.topology.components == 1})
 
