@@ -90,7 +90,7 @@ def test_builtin_specs_state_every_derived_setting():
         allowed = {"model.kind", "model.w0_hidden"} | ({"model.w0_first"} if name == "plateau" else set())
         allowed |= {"losses.topology.weight", "topology.grid"}  # act only with topology targets; these state none
         # act only with a volume bound or a least feature size; these state none
-        allowed |= {"losses.volume.weight", "losses.thickness.weight", "losses.gap.weight", "losses.overhang.weight",
+        allowed |= {"losses.volume.weight", "losses.area.weight", "losses.thickness.weight", "losses.gap.weight", "losses.overhang.weight",
                     "losses.fillet.weight"}
         if name == "plateau":
             allowed.add("latents.draw")  # acts only with latent codes; Plateau trains one shape

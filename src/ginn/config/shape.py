@@ -30,6 +30,7 @@ class LossesConfig(Strict):
     topology: LossTerm = LossTerm()
     diversity: LossTerm = LossTerm()
     volume: LossTerm = LossTerm()
+    area: LossTerm = LossTerm()
     thickness: LossTerm = LossTerm()
     gap: LossTerm = LossTerm()
     overhang: LossTerm = LossTerm()

@@ -8,6 +8,7 @@ checkpoint state. :func:`shape_constraints` assembles the terms of a problem;
 :class:`ginn.tasks.shape.ShapeTask` (``extra=``) or added to :func:`shape_constraints`.
 """
 
+from .area import Area, AreaVerdict
 from .base import Constraint, Setting, Stage
 from .batch import Batch, Surface
 from .catalog import describe, problem_verdicts, shape_constraints, verdict_text, verdicts_of
@@ -31,9 +32,9 @@ __all__ = [
     "Constraint", "Setting", "Stage", "Batch", "Surface", "SampleSet", "Verdict", "Violation",
     "DOMAIN", "OUTSIDE", "OBSTACLE", "INTERFACE", "BAND", "BUILTIN_SETS",
     "Eikonal", "DesignRegion", "Obstacle", "Interface", "Normal", "MeanCurvature", "Strain", "Diversity",
-    "Connectedness", "HoleTargets", "VolumeFraction", "MinThickness", "MinGap", "Overhang", "MinRadius",
+    "Connectedness", "HoleTargets", "VolumeFraction", "MinThickness", "MinGap", "Overhang", "MinRadius", "Area",
     "InterfaceVerdict", "VolumeOutside", "Connected", "TopologyTargets", "SymmetryVerdict", "LeastDiversity",
-    "VolumeFractionVerdict", "MinThicknessVerdict", "MinGapVerdict", "OverhangVerdict", "MinRadiusVerdict",
+    "VolumeFractionVerdict", "MinThicknessVerdict", "MinGapVerdict", "OverhangVerdict", "MinRadiusVerdict", "AreaVerdict",
     "BETTI_METRICS", "containment_floor", "judged_volume_outside",
     "shape_constraints", "problem_verdicts", "verdicts_of", "describe", "verdict_text",
 ]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from ..problems.problem import Problem
+from .area import Area, AreaVerdict
 from .base import Constraint, Setting
 from .connectedness import Connected, Connectedness
 from .containment import DesignRegion, Obstacle, VolumeOutside
@@ -24,14 +25,14 @@ __all__ = ["shape_constraints", "problem_verdicts", "verdicts_of", "describe", "
 #: the built-in verdicts by name (their texts)
 BUILTIN_VERDICTS: dict[str, type[Verdict]] = {
     v.name: v for v in (InterfaceVerdict, VolumeOutside, Connected, TopologyTargets, SymmetryVerdict, LeastDiversity,
-                        VolumeFractionVerdict, MinThicknessVerdict, MinGapVerdict, OverhangVerdict, MinRadiusVerdict)}
+                        VolumeFractionVerdict, MinThicknessVerdict, MinGapVerdict, OverhangVerdict, MinRadiusVerdict, AreaVerdict)}
 
 
 def shape_constraints(setting: Setting) -> list[Constraint]:
     """Every term a shape problem can have, in the order of its loss terms: the eikonal
     objective, containment in E and out of the obstacles, the interfaces and their normals, the
     curvature objectives, the diversity (generative models), connectedness, the hole targets, the
-    volume bounds, the least feature sizes, the overhang and the fillet radius.
+    volume and area bounds, the least feature sizes, the overhang and the fillet radius.
     A term applies where the geometry has what it acts on (E, obstacles, interfaces with normals,
     topology targets); whether it is active is the trainer's business (its weight and start)."""
     p = setting.problem
@@ -52,6 +53,8 @@ def shape_constraints(setting: Setting) -> list[Constraint]:
         out.append(HoleTargets(setting))
     if p.tolerances.volume_fraction is not None:
         out.append(VolumeFraction(setting))
+    if p.tolerances.area is not None:
+        out.append(Area(setting))
     if p.tolerances.min_thickness is not None:
         out.append(MinThickness(setting))
     if p.tolerances.min_gap is not None:
@@ -66,7 +69,7 @@ def shape_constraints(setting: Setting) -> list[Constraint]:
 def problem_verdicts(problem: Problem) -> list[Verdict]:
     """The verdicts of ``problem``'s tolerances, in the order ``ginn eval`` reports them: the
     interfaces, the volume outside E, connectedness, the topology targets, the symmetry, the
-    volume bounds, the least thickness and gap, the overhang, the fillet radius, and the least diversity of the set."""
+    volume and area bounds, the least thickness and gap, the overhang, the fillet radius, and the least diversity of the set."""
     out: list[Verdict] = []
     if problem.interfaces:
         out.append(InterfaceVerdict(problem))
@@ -79,6 +82,8 @@ def problem_verdicts(problem: Problem) -> list[Verdict]:
         out.append(SymmetryVerdict(problem))
     if problem.tolerances.volume_fraction is not None:
         out.append(VolumeFractionVerdict(problem))
+    if problem.tolerances.area is not None:
+        out.append(AreaVerdict(problem))
     if problem.tolerances.min_thickness is not None:
         out.append(MinThicknessVerdict(problem))
     if problem.tolerances.min_gap is not None:

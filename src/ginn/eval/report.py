@@ -25,6 +25,7 @@ METRIC_LABELS = {
     "volume_fraction": "vol(Ω ∩ E) / vol(E)",
     "surface_strain": "↓ E_strain(Ω)",
     "symmetry_error": "↓ symmetry error",
+    "boundary_area": "area (2D: length) of ∂Ω",
     "thickness_removed": "↓ vol(Ω minus its opening by the min-thickness ball) / vol(Ω)",
     "gap_filled": "↓ vol(closing of Ω by the min-gap ball minus Ω) / vol(Ω)",
     "overhang_share": "↓ overhanging share of the down-facing boundary",
@@ -35,7 +36,7 @@ METRIC_LABELS = {
 
 _ROWS = tuple(k for k in METRIC_LABELS if k != "diversity_mean")
 #: rows shown only where a run measures them (the verdicts of some tolerances measure them)
-_OPTIONAL = ("thickness_removed", "gap_filled", "overhang_share", "sharp_share", "curvature_max")
+_OPTIONAL = ("boundary_area", "thickness_removed", "gap_filled", "overhang_share", "sharp_share", "curvature_max")
 
 
 def _fmt(v) -> str:

@@ -142,6 +142,8 @@ RULES: tuple[Rule, ...] = (
          "a volume fraction has no scale; the obstacle with 4 shapes and `volume_fraction` 0.35 (seed 0) ended with "
          "its worst fraction 26 % over the bound at weight 1 and every fraction within it at 10 "
          "(`docs/results.md`, \"Volume bounds\"; only with `tolerances.volume_fraction`)"),
+    Rule("losses.area.weight", "10", lambda g: 10.0,
+         "relative to its bound: no scale, as the volume fraction (only with `tolerances.area`)"),
     Rule("losses.thickness.weight", "300 / s", lambda g: 300.0 / g.s,
          "mean `relu(f)` on the inner normal segments scales as `s` (power 1), as the design region (only with "
          "`tolerances.min_thickness`)", "s"),

@@ -9,16 +9,21 @@ from ..geometry.symmetry import Symmetry
 
 
 @dataclass(frozen=True)
-class VolumeBounds:
-    """Bounds on the volume fraction ``vol(Omega cap E) / vol(E)`` of every shape (E: the design
-    region, or the domain where there is none); None: no bound on that side."""
+class Bounds:
+    """An interval ``[min, max]`` a per-shape quantity must lie in (None: no bound on that side):
+    the volume fraction ``vol(Omega cap E) / vol(E)`` of every shape (E: the design region, or the
+    domain where there is none), or the area of its boundary."""
 
     min: float | None = None
     max: float | None = None
 
-    def violated(self, fraction: float) -> bool:
-        """Whether ``fraction`` lies outside the bounds."""
-        return (self.max is not None and fraction > self.max) or (self.min is not None and fraction < self.min)
+    def violated(self, value: float) -> bool:
+        """Whether ``value`` lies outside the bounds."""
+        return (self.max is not None and value > self.max) or (self.min is not None and value < self.min)
+
+
+#: the volume fraction's bounds (the name the volume bound was introduced with)
+VolumeBounds = Bounds
 
 
 @dataclass(frozen=True)
@@ -86,6 +91,8 @@ class Tolerances:
         min_gap: the least width of the gaps and holes between parts of the solid (None: free).
         overhang: the largest overhang for additive manufacturing (None: free).
         min_radius: the smallest radius of curvature of the boundary (None: free).
+        area: bounds on the area (2D: length) of each shape's boundary, in the problem's units
+            (None: free).
     """
 
     interface: float = 5e-3
@@ -99,6 +106,7 @@ class Tolerances:
     min_gap: FeatureSize | None = None
     overhang: Overhang | None = None
     min_radius: CurvatureBound | None = None
+    area: Bounds | None = None
 
 
 @dataclass(frozen=True)

@@ -27,7 +27,7 @@ from .derived import derived_defaults, half_longest_side
 from .forced import forced_holes, forced_tunnels
 from .interfaces import INTERFACE_TYPES, InterfaceSpec
 from .nodes import Dir3, Direction, Finite, Fraction, Node, NonNegative, Point, Positive, check_lo_hi, spec_dim
-from .problem import CurvatureBound, FeatureSize, Overhang, Problem, Tolerances, Topology, VolumeBounds
+from .problem import Bounds, CurvatureBound, FeatureSize, Overhang, Problem, Tolerances, Topology
 from .regions import REGION_TYPES, RegionSpec
 from .symmetric import check_symmetric
 
@@ -57,22 +57,33 @@ class GeometrySpec(Node):
         None, description="the length at which tolerances are stated; default half the longest side of the domain")
 
 
-class VolumeFractionSpec(Node):
-    """Bounds on each shape's volume as a fraction of E (:class:`~ginn.problems.problem.VolumeBounds`)."""
-
-    min: Fraction | None = Field(None, description="the least vol(shape in E) / vol(E)")
-    max: Fraction | None = Field(None, description="the largest vol(shape in E) / vol(E)")
+class _IntervalSpec(Node):
+    """Bounds ``min <= value <= max`` (:class:`~ginn.problems.problem.Bounds`), one side or both."""
 
     @model_validator(mode="after")
-    def _ordered(self) -> VolumeFractionSpec:
+    def _ordered(self):
         if self.min is None and self.max is None:
             raise ValueError("state min, max or both")
         if self.min is not None and self.max is not None and self.min > self.max:
             raise ValueError(f"min {self.min} is above max {self.max}")
         return self
 
-    def build(self) -> VolumeBounds:
-        return VolumeBounds(self.min, self.max)
+    def build(self) -> Bounds:
+        return Bounds(self.min, self.max)
+
+
+class VolumeFractionSpec(_IntervalSpec):
+    """Bounds on each shape's volume as a fraction of E."""
+
+    min: Fraction | None = Field(None, description="the least vol(shape in E) / vol(E)")
+    max: Fraction | None = Field(None, description="the largest vol(shape in E) / vol(E)")
+
+
+class AreaSpec(_IntervalSpec):
+    """Bounds on the area (2D: length) of each shape's boundary."""
+
+    min: NonNegative | None = Field(None, description="the least area of the boundary")
+    max: Positive | None = Field(None, description="the largest area of the boundary")
 
 
 class FeatureSizeSpec(Node):
@@ -150,7 +161,11 @@ class TolerancesSpec(Node):
         "at most 1 / radius in absolute value, up to share (0.01) of the boundary, the interfaces exempt: "
         "{radius: 0.02}; a number is radius")
 
-    @field_validator("volume_fraction", mode="before")
+    area: AreaSpec | None = Field(
+        None, description="bounds on the area (2D: length) of each shape's boundary inside the domain, in the "
+        "problem's units: {max: 2.5}, {min: 1.0}, or both; a number is the largest area")
+
+    @field_validator("volume_fraction", "area", mode="before")
     @classmethod
     def _number_is_max(cls, v: Any) -> Any:
         return {"max": v} if isinstance(v, (int, float)) and not isinstance(v, bool) else v
@@ -378,7 +393,7 @@ class ProblemSpec(BaseModel):
     def _tolerances(self) -> Tolerances:
         t = self.tolerances
         built = {k: getattr(t, k) and getattr(t, k).build()
-                 for k in ("volume_fraction", "min_thickness", "min_gap", "overhang", "min_radius")}
+                 for k in ("volume_fraction", "area", "min_thickness", "min_gap", "overhang", "min_radius")}
         return Tolerances(**{**t.model_dump(exclude=set(built)), **built,
                              "connected": t.connected or self.topology.components == 1})
 
