@@ -91,7 +91,7 @@ def test_builtin_specs_state_every_derived_setting():
         allowed |= {"losses.topology.weight", "topology.grid"}  # act only with topology targets; these state none
         # act only with a volume bound or a least feature size; these state none
         allowed |= {"losses.volume.weight", "losses.area.weight", "losses.thickness.weight", "losses.gap.weight", "losses.overhang.weight",
-                    "losses.fillet.weight"}
+                    "losses.fillet.weight", "losses.faces.weight"}
         if name == "plateau":
             allowed.add("latents.draw")  # acts only with latent codes; Plateau trains one shape
         assert not spec.build().topology.targets and spec.build().tolerances.volume_fraction is None

@@ -35,6 +35,7 @@ class LossesConfig(Strict):
     gap: LossTerm = LossTerm()
     overhang: LossTerm = LossTerm()
     fillet: LossTerm = LossTerm()
+    faces: LossTerm = LossTerm()
     containment_power: Literal[1, 2] = Field(
         2,
         description="exponent of the design-region and obstacle penalties: 2 is the paper's mean of "

@@ -10,6 +10,7 @@ from .containment import DesignRegion, Obstacle, VolumeOutside
 from .curvature import MeanCurvature, Strain
 from .diversity import Diversity, LeastDiversity
 from .eikonal import Eikonal
+from .faces import FlatFaces, FlatFacesVerdict
 from .feature_size import MinGap, MinGapVerdict, MinThickness, MinThicknessVerdict
 from .fillet import MinRadius, MinRadiusVerdict
 from .holes import HoleTargets, TopologyTargets
@@ -25,14 +26,15 @@ __all__ = ["shape_constraints", "problem_verdicts", "verdicts_of", "describe", "
 #: the built-in verdicts by name (their texts)
 BUILTIN_VERDICTS: dict[str, type[Verdict]] = {
     v.name: v for v in (InterfaceVerdict, VolumeOutside, Connected, TopologyTargets, SymmetryVerdict, LeastDiversity,
-                        VolumeFractionVerdict, MinThicknessVerdict, MinGapVerdict, OverhangVerdict, MinRadiusVerdict, AreaVerdict)}
+                        VolumeFractionVerdict, MinThicknessVerdict, MinGapVerdict, OverhangVerdict, MinRadiusVerdict,
+                        AreaVerdict, FlatFacesVerdict)}
 
 
 def shape_constraints(setting: Setting) -> list[Constraint]:
     """Every term a shape problem can have, in the order of its loss terms: the eikonal
     objective, containment in E and out of the obstacles, the interfaces and their normals, the
     curvature objectives, the diversity (generative models), connectedness, the hole targets, the
-    volume and area bounds, the least feature sizes, the overhang and the fillet radius.
+    volume and area bounds, the least feature sizes, the overhang, the fillet radius and the flat faces.
     A term applies where the geometry has what it acts on (E, obstacles, interfaces with normals,
     topology targets); whether it is active is the trainer's business (its weight and start)."""
     p = setting.problem
@@ -63,13 +65,16 @@ def shape_constraints(setting: Setting) -> list[Constraint]:
         out.append(Overhang(setting))
     if p.tolerances.min_radius is not None:
         out.append(MinRadius(setting))
+    if p.tolerances.faces:
+        out.append(FlatFaces(setting))
     return out
 
 
 def problem_verdicts(problem: Problem) -> list[Verdict]:
     """The verdicts of ``problem``'s tolerances, in the order ``ginn eval`` reports them: the
     interfaces, the volume outside E, connectedness, the topology targets, the symmetry, the
-    volume and area bounds, the least thickness and gap, the overhang, the fillet radius, and the least diversity of the set."""
+    volume and area bounds, the least thickness and gap, the overhang, the fillet radius, the flat
+    faces, and the least diversity of the set."""
     out: list[Verdict] = []
     if problem.interfaces:
         out.append(InterfaceVerdict(problem))
@@ -92,6 +97,8 @@ def problem_verdicts(problem: Problem) -> list[Verdict]:
         out.append(OverhangVerdict(problem))
     if problem.tolerances.min_radius is not None:
         out.append(MinRadiusVerdict(problem))
+    if problem.tolerances.faces:
+        out.append(FlatFacesVerdict(problem))
     if problem.tolerances.diversity is not None:
         out.append(LeastDiversity(problem))
     return out

@@ -31,12 +31,13 @@ METRIC_LABELS = {
     "overhang_share": "↓ overhanging share of the down-facing boundary",
     "sharp_share": "↓ share of the boundary sharper than the fillet radius",
     "curvature_max": "largest principal curvature |κ|",
+    "face_deviation": "↓ flat faces: largest normal angle / allowed",
     "diversity_mean": "↑ δ_mean(S)",
 }
 
 _ROWS = tuple(k for k in METRIC_LABELS if k != "diversity_mean")
 #: rows shown only where a run measures them (the verdicts of some tolerances measure them)
-_OPTIONAL = ("boundary_area", "thickness_removed", "gap_filled", "overhang_share", "sharp_share", "curvature_max")
+_OPTIONAL = ("boundary_area", "thickness_removed", "gap_filled", "overhang_share", "sharp_share", "curvature_max", "face_deviation")
 
 
 def _fmt(v) -> str:

@@ -1,10 +1,12 @@
-"""The curvature of a field's zero level set at area-uniform points of its extracted boundary.
+"""The normals and curvatures of a field's zero level set at area-uniform points of its extracted
+boundary.
 
 The points are drawn by area on the level-set part of the boundary (not on the caps where the
 domain cuts the shape), moved onto ``f = 0`` by two Newton steps of at most a grid cell, and the
-principal curvatures there come from the field's Hessian (:func:`ginn.fields.principal_curvatures`;
-in 2D the curvature of the curve, :func:`ginn.fields.mean_curvature`): exact for the field, where
-a mesh's discrete curvature would depend on its triangles.
+normals (the field's unit gradient) and principal curvatures there come from the field (Hessians:
+:func:`ginn.fields.principal_curvatures`; in 2D the curvature of the curve,
+:func:`ginn.fields.mean_curvature`): exact for the field, where a mesh's discrete normals and
+curvatures would depend on its triangles.
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ from ..levelset import project_to_zero
 from .boundary import Boundary
 from .sampling import field_dtype_device
 
-__all__ = ["largest_curvature", "boundary_curvatures"]
+__all__ = ["largest_curvature", "boundary_points", "boundary_curvatures"]
 
 
 def largest_curvature(grad: Tensor, hess: Tensor) -> Tensor:
@@ -30,21 +32,44 @@ def largest_curvature(grad: Tensor, hess: Tensor) -> Tensor:
     return fields.principal_curvatures(grad, hess).abs().amax(dim=-1)
 
 
+def _on_level_set(field: Field, z: Tensor | None, boundary: Boundary, n_samples: int, rng: np.random.Generator,
+                   step_cap: float | None) -> tuple[Tensor, Tensor | None] | None:
+    """Area-uniform points of the boundary's level-set part moved onto ``f = 0`` and their codes."""
+    x = boundary.sample(n_samples, rng, level_set_only=True)
+    if x.shape[0] == 0:
+        return None
+    dt, dev = field_dtype_device(field, z)
+    xt = torch.as_tensor(x, dtype=dt, device=dev)
+    zz = None if z is None else z.reshape(1, -1).to(dt).expand(xt.shape[0], -1)
+    proj = project_to_zero(field, xt, zz, steps=2, tol=float("inf"), max_step=step_cap)
+    return torch.where(torch.isfinite(proj.x).all(dim=1, keepdim=True), proj.x, xt), zz
+
+
+def boundary_points(field: Field, z: Tensor | None, boundary: Boundary, n_samples: int = 2048,
+                    rng: np.random.Generator | None = None, step_cap: float | None = None
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """``n_samples`` area-uniform points on ``f = 0`` near ``boundary`` and the field's outward
+    unit normal at each, ``(m, d)`` each, float64 (module docstring; empty when the boundary has no
+    level-set part)."""
+    on = _on_level_set(field, z, boundary, n_samples, rng or np.random.default_rng(0), step_cap)
+    if on is None:
+        return np.zeros((0, boundary.dim)), np.zeros((0, boundary.dim))
+    xp, zz = on
+    g = fields.evaluate(field, xp, zz, grad=True, create_graph=False).grad
+    n = g / g.norm(dim=-1, keepdim=True).clamp_min(1e-30)
+    return xp.double().cpu().numpy(), n.double().cpu().numpy()
+
+
 def boundary_curvatures(field: Field, z: Tensor | None, boundary: Boundary, n_samples: int = 2048,
                         rng: np.random.Generator | None = None, step_cap: float | None = None
                         ) -> tuple[np.ndarray, np.ndarray]:
     """``n_samples`` area-uniform points on ``f = 0`` near ``boundary`` and the largest absolute
     principal curvature at each, ``(m, d)`` and ``(m,)`` float64 (module docstring; empty when the
     boundary has no level-set part)."""
-    rng = rng or np.random.default_rng(0)
-    x = boundary.sample(n_samples, rng, level_set_only=True)
-    if x.shape[0] == 0:
-        return x, np.zeros(0)
-    dt, dev = field_dtype_device(field, z)
-    xt = torch.as_tensor(x, dtype=dt, device=dev)
-    zz = None if z is None else z.reshape(1, -1).to(dt).expand(xt.shape[0], -1)
-    proj = project_to_zero(field, xt, zz, steps=2, tol=float("inf"), max_step=step_cap)
-    xp = torch.where(torch.isfinite(proj.x).all(dim=1, keepdim=True), proj.x, xt)
+    on = _on_level_set(field, z, boundary, n_samples, rng or np.random.default_rng(0), step_cap)
+    if on is None:
+        return np.zeros((0, boundary.dim)), np.zeros(0)
+    xp, zz = on
     v = fields.evaluate(field, xp, zz, grad=False, hessian_at=True, create_graph=False)
     k = torch.nan_to_num(largest_curvature(v.hessian_grad, v.hessian), nan=float("inf"))
     return xp.double().cpu().numpy(), k.double().cpu().numpy()

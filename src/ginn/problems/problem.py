@@ -71,6 +71,23 @@ class CurvatureBound:
 
 
 @dataclass(frozen=True)
+class FlatFace:
+    """A flat face: the boundary inside ``region`` has its outward normal within ``angle``
+    degrees of ``normal`` (flat and parallel to the plane with that normal;
+    :mod:`ginn.constraints.faces`).
+
+    Attributes:
+        region: where the face is (a region of the problem's space).
+        normal: the face's outward unit normal ``(d,)``.
+        angle: degrees.
+    """
+
+    region: Region
+    normal: tuple[float, ...]
+    angle: float = 2.0
+
+
+@dataclass(frozen=True)
 class Tolerances:
     """When a shape counts as feasible (:mod:`ginn.eval.feasibility`), in the problem's units.
 
@@ -93,6 +110,7 @@ class Tolerances:
         min_radius: the smallest radius of curvature of the boundary (None: free).
         area: bounds on the area (2D: length) of each shape's boundary, in the problem's units
             (None: free).
+        faces: flat faces the boundary must have (none: free).
     """
 
     interface: float = 5e-3
@@ -107,6 +125,7 @@ class Tolerances:
     overhang: Overhang | None = None
     min_radius: CurvatureBound | None = None
     area: Bounds | None = None
+    faces: tuple[FlatFace, ...] = ()
 
 
 @dataclass(frozen=True)

@@ -12,6 +12,7 @@ checking that the interfaces lie in the domain), with the same kind of errors;
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -27,7 +28,7 @@ from .derived import derived_defaults, half_longest_side
 from .forced import forced_holes, forced_tunnels
 from .interfaces import INTERFACE_TYPES, InterfaceSpec
 from .nodes import Dir3, Direction, Finite, Fraction, Node, NonNegative, Point, Positive, check_lo_hi, spec_dim
-from .problem import Bounds, CurvatureBound, FeatureSize, Overhang, Problem, Tolerances, Topology
+from .problem import Bounds, CurvatureBound, FeatureSize, FlatFace, Overhang, Problem, Tolerances, Topology
 from .regions import REGION_TYPES, RegionSpec
 from .symmetric import check_symmetric
 
@@ -127,6 +128,20 @@ class CurvatureBoundSpec(Node):
         return CurvatureBound(float(self.radius), float(self.share))
 
 
+def _unit(v) -> tuple[float, ...]:
+    n = math.sqrt(sum(float(c) ** 2 for c in v))
+    return tuple(float(c) / n for c in v)
+
+
+class FlatFaceSpec(Node):
+    """A flat face of the boundary (:class:`~ginn.problems.problem.FlatFace`)."""
+
+    region: RegionSpec = Field(description="where the face is: a region of the problem's space")
+    normal: Direction = Field(description="the face's outward normal (need not be a unit vector)")
+    angle: Annotated[float, Field(gt=0, lt=90, allow_inf_nan=False)] = Field(
+        2.0, description="the largest angle in degrees between the boundary's normal in the region and normal")
+
+
 class TolerancesSpec(Node):
     """When a shape is feasible (:class:`~ginn.problems.problem.Tolerances`)."""
 
@@ -161,6 +176,9 @@ class TolerancesSpec(Node):
         "at most 1 / radius in absolute value, up to share (0.01) of the boundary, the interfaces exempt: "
         "{radius: 0.02}; a number is radius")
 
+    faces: list[FlatFaceSpec] = Field(
+        default_factory=list, description="flat faces: [{region: {...}, normal: [0, 0, 1], angle: 2}]: the boundary "
+        "inside each region faces along its normal within angle degrees (flat and parallel to that plane)")
     area: AreaSpec | None = Field(
         None, description="bounds on the area (2D: length) of each shape's boundary inside the domain, in the "
         "problem's units: {max: 2.5}, {min: 1.0}, or both; a number is the largest area")
@@ -394,6 +412,7 @@ class ProblemSpec(BaseModel):
         t = self.tolerances
         built = {k: getattr(t, k) and getattr(t, k).build()
                  for k in ("volume_fraction", "area", "min_thickness", "min_gap", "overhang", "min_radius")}
+        built["faces"] = ()  # regions need the geometry's build (ProblemSpec.build)
         return Tolerances(**{**t.model_dump(exclude=set(built)), **built,
                              "connected": t.connected or self.topology.components == 1})
 
@@ -430,6 +449,8 @@ class ProblemSpec(BaseModel):
             design = csg.Difference(design, *obstacles)
         symmetry = self.symmetry.build()
         unit_scale = float(g.unit_scale) if g.unit_scale is not None else half_longest_side(domain)
+        flat = tuple(FlatFace(make(f.region, f"tolerances.faces[{i}].region"), _unit(f.normal), float(f.angle))
+                     for i, f in enumerate(self.tolerances.faces))
         if symmetry is not None:
             check_symmetric(symmetry, domain, design, faces, self.tolerances.interface * unit_scale)
         if dim == 2 and self.topology.holes is not None:
@@ -446,7 +467,7 @@ class ProblemSpec(BaseModel):
             obstacles=obstacles,
             interface_band=float(g.interface_band),
             unit_scale=unit_scale,
-            tolerances=self._tolerances(),
+            tolerances=replace(self._tolerances(), faces=flat),
             topology=self.topology.build(dim),
             symmetry=symmetry,
             description=self.description,

@@ -1,0 +1,91 @@
+"""Flat faces: the largest normal angle in a face's region on fields whose normals are known, a
+region without boundary, the loss, the spec."""
+
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+import torch
+
+from ginn.constraints import FlatFaces, FlatFacesVerdict
+from ginn.errors import SpecError
+from ginn.extract.boundary import extract_boundary
+from ginn.extract.grid import Grid
+from ginn.fields import as_field
+from ginn.problems import validate_spec
+from ginn.tasks import make_task
+
+TOP = {"type": "rectangle", "lo": [-0.3, 0.1], "hi": [0.3, 0.5]}  # holds the top face of the boxes below
+
+
+def _box(tilt_deg):
+    """The SDF of the rectangle [-0.5, 0.5] x [-0.3, 0.3] turned by ``tilt_deg`` about the origin."""
+    c, s = math.cos(math.radians(tilt_deg)), math.sin(math.radians(tilt_deg))
+
+    def f(x):
+        u = torch.stack([c * x[:, 0] + s * x[:, 1], -s * x[:, 0] + c * x[:, 1]], dim=-1)
+        q = u.abs() - torch.tensor([0.5, 0.3], dtype=x.dtype)
+        return q.clamp_min(0).norm(dim=-1) + q.max(-1).values.clamp_max(0)
+    return as_field(f)
+
+
+SPEC = {"name": "mount", "geometry": {
+    "dim": 2, "domain": {"lo": [-1, -1], "hi": [1, 1]},
+    "interfaces": [{"type": "segment", "a": [-0.95, -0.9], "b": [-0.9, -0.9], "normal": [0, -1]}]}}
+
+
+def _spec(faces):
+    return validate_spec({**SPEC, "tolerances": {"faces": faces}})
+
+
+def _measure(field, faces):
+    g = Grid(np.full(2, -1.0), np.full(2, 1.0), (400, 400))
+    vals = field(torch.as_tensor(g.points(), dtype=torch.float64)).reshape(g.shape).numpy().astype(np.float32)
+    v = FlatFacesVerdict(_spec(faces).build())
+    return v, v.measure(SimpleNamespace(boundary=extract_boundary(vals, g)), SimpleNamespace(grid=g), field, None)
+
+
+@pytest.mark.parametrize("tilt, angle, feasible", [(0.0, 2.0, True), (5.0, 2.0, False), (5.0, 6.0, True)])
+def test_the_largest_angle_in_the_region_is_the_tilt(tilt, angle, feasible):
+    v, m = _measure(_box(tilt), [{"region": TOP, "normal": [0, 1], "angle": angle}])
+    assert m["face_angles"][0] == pytest.approx(tilt, abs=0.05)
+    assert m["face_deviation"] == pytest.approx(tilt / angle, abs=0.05 / angle)
+    assert (v.violation(m) is None) == feasible
+
+
+def test_a_region_without_boundary_is_a_missing_face():
+    v, m = _measure(_box(0.0), [{"region": TOP, "normal": [0, 1]},
+                                {"region": {"type": "disk", "center": [0.8, 0.8], "radius": 0.1}, "normal": [1, 0]}])
+    assert m["face_angles"][0] == pytest.approx(0.0, abs=0.05) and m["face_angles"][1] is None
+    assert math.isinf(m["face_deviation"]) and "no boundary" in FlatFacesVerdict.describe(v.violation(m))
+
+
+def test_spec_checks_the_normal_and_the_angle():
+    f = _spec([{"region": TOP, "normal": [0, 2]}]).build().tolerances.faces[0]
+    assert f.normal == (0.0, 1.0) and f.angle == 2.0
+    for bad in ([{"region": TOP, "normal": [0, 0, 1]}], [{"region": TOP, "normal": [0, 1], "angle": 95}],
+                [{"normal": [0, 1]}]):
+        with pytest.raises(SpecError, match="tolerances.faces"):
+            _spec(bad)
+
+
+class _Line(torch.nn.Module):
+    """The signed distance to the line through the origin with unit normal at ``beta`` degrees."""
+
+    def __init__(self, beta):
+        super().__init__()
+        b = math.radians(beta)
+        self.n = torch.nn.Parameter(torch.tensor([math.cos(b), math.sin(b)]))
+
+    def forward(self, x, z=None):
+        return x @ self.n
+
+
+@pytest.mark.parametrize("beta", [90.0, 80.0, 60.0])
+def test_loss_is_one_minus_the_cosine_to_the_face_normal(beta):
+    spec = _spec([{"region": {"type": "rectangle", "lo": [-0.5, -0.5], "hi": [0.5, 0.5]}, "normal": [0, 1]}])
+    task = make_task(spec, spec.config(None, {"sampling": {"n_domain": 2048, "n_boundary": 64}}))
+    assert [c for c in task.constraints if isinstance(c, FlatFaces)]
+    terms = task.loss_terms(_Line(beta), 0, {"faces", "eikonal"}, torch.Generator().manual_seed(0))
+    assert float(terms["faces"].detach()) == pytest.approx(1 - math.cos(math.radians(90 - beta)), abs=1e-6)
