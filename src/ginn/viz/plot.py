@@ -37,6 +37,7 @@ from ..geometry.base import Box, Region
 from ..problems.problem import Problem
 from .curves import plot_loss_curves
 from .figure import new_figure, save_figure
+from .manufacturing import draw_violations_2d, has_marks
 
 __all__ = [
     "new_figure",
@@ -300,16 +301,21 @@ def plot_shapes(
     *,
     cache: dict | None = None,
 ) -> Path:
-    """One panel per shape (2D: on the problem; 3D: one rendered view)."""
+    """One panel per shape (2D: on the problem, with what breaks its manufacturing tolerances
+    marked, :mod:`ginn.viz.manufacturing`; 3D: one rendered view)."""
     res = resolution or default_resolution("figure", problem.dim)
     codes = _codes(Z)
     bs = _boundaries(field, codes, problem.domain, res, cache)
     rows, cols = _panel_grid(len(bs), ncols)
     w, h = _panel_size(problem)
     fig = new_figure(w * cols, h * rows)
+    marks = problem.dim == 2 and has_marks(problem)
+    g = make_grid(problem.domain, res) if marks else None
     for i, b in enumerate(bs):
         title = None if codes[i] is None else "z = " + ", ".join(f"{v:.3g}" for v in codes[i].reshape(-1).tolist())
-        _draw_panel(fig, rows, cols, i, b, problem, SHAPE_COLOR, title=title)
+        ax = _draw_panel(fig, rows, cols, i, b, problem, SHAPE_COLOR, title=title)
+        if marks:
+            draw_violations_2d(ax, problem, sample_field(field, g, codes[i]) <= 0, g, b)
     return save_figure(fig, path)
 
 
