@@ -2,6 +2,7 @@
 per latent value; it renders in a real headless browser that cannot resolve any host (no network
 needed), and moving the slider changes the picture."""
 
+import base64
 import json
 import re
 import shutil
@@ -143,3 +144,27 @@ def test_plateau_view_shows_the_reference_surface(tmp_path):
     data, _ = _figure(runs.view(tmp_path / "p").read_text())
     ref = [t for t in data if t["name"] == "reference minimal surface"]
     assert len(ref) == 1 and ref[0]["type"] == "mesh3d" and ref[0]["opacity"] < 1
+
+
+def test_a_problem_with_manufacturing_tolerances_marks_them_in_every_frame(tmp_path):
+    """A field whose shape is a thin bar (0.04 thick) under a min_thickness of 0.1: each frame
+    carries a second trace outlining it; without the tolerance there is none."""
+    from ginn.fields import as_field
+    from ginn.problems import validate_spec
+    from ginn.viz.explorer import write_explorer
+
+    spec = {"name": "bar", "geometry": {"dim": 2, "domain": {"lo": [-1, -1], "hi": [1, 1]},
+            "interfaces": [{"type": "segment", "a": [-0.5, 0.0], "b": [0.5, 0.0], "normal": [0, 1]}]},
+            "tolerances": {"min_thickness": 0.1}}
+    field = as_field(lambda x: torch.maximum(x[:, 0].abs() - 0.5, x[:, 1].abs() - 0.02))
+    html = write_explorer(field, None, validate_spec(spec).build(), tmp_path / "m.html", resolution=128).read_text()
+    data, _ = _figure(html)
+    marks = [t for t in data if t.get("name") == "thin, narrow or overhanging"]
+    assert len(marks) == 1
+    x = marks[0]["x"]  # plotly writes arrays as base64 typed arrays
+    xs = np.frombuffer(base64.b64decode(x["bdata"]), dtype=x["dtype"]) if isinstance(x, dict) else np.asarray(x, float)
+    xs = xs[np.isfinite(xs)]
+    assert xs.min() < -0.45 and xs.max() > 0.45  # the outline spans the bar
+    plain = write_explorer(field, None, validate_spec({**spec, "tolerances": {}}).build(), tmp_path / "p.html",
+                           resolution=128).read_text()
+    assert all(t.get("name") != "thin, narrow or overhanging" for t in _figure(plain)[0])

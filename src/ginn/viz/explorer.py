@@ -41,6 +41,7 @@ from ..extract.boundary import extract_boundary
 from ..extract.grid import make_grid
 from ..fields import Field
 from ..problems.problem import Problem
+from .manufacturing import THIN_COLOR, has_marks, violation_marks
 
 __all__ = ["ExplorerLatents", "explorer_latents", "write_explorer", "write_page", "add_sliders", "note", "EXPLORER_RESOLUTION"]
 
@@ -221,6 +222,22 @@ def _shape_trace(shape, grid, d: int):
                      hoverinfo="skip")
 
 
+def _marks_trace(problem: Problem, shape, grid):
+    """The outlines of the thin solid and the narrow void and the overhanging boundary of a 2D
+    shape (:func:`ginn.viz.manufacturing.violation_marks`), as one line trace."""
+    import plotly.graph_objects as go
+
+    marks = violation_marks(problem, shape.values <= 0, grid, shape.boundary)
+    lines: list[np.ndarray] = []
+    for key in ("thin", "narrow"):
+        if key in marks and marks[key].any():
+            lines += _contours(np.pad(0.5 - marks[key].astype(np.float64), 1, constant_values=0.5), grid, pad=1)
+    lines += [seg for seg in marks.get("overhang", [])]
+    x, y = _lines(lines, 2)
+    return go.Scatter(x=x, y=y, mode="lines", line={"color": THIN_COLOR, "width": 2},
+                      name="thin, narrow or overhanging", hoverinfo="skip")
+
+
 def _slider(latents: ExplorerLatents, names: list[str], prefix: str, axis: int | None = None) -> dict:
     if axis is None:
         steps = [{"label": lab, "method": "animate",
@@ -283,6 +300,7 @@ def write_explorer(field: Field, Z: Tensor | None, problem: Problem, path: str |
     dev = next(field.parameters()).device if isinstance(field, torch.nn.Module) else torch.device("cpu")
     dt = next(field.parameters()).dtype if isinstance(field, torch.nn.Module) else torch.float32
     frames, names, shapes = [], [], []
+    marked = d == 2 and has_marks(problem)
     for idx, z in enumerate(lat.codes):
         zz = None if z is None else z.to(dev, dt)
         shape = extract_shape(field, zz, ctx.grid)
@@ -294,11 +312,12 @@ def write_explorer(field: Field, Z: Tensor | None, problem: Problem, path: str |
             how = f"as ginn eval judges it ({judge.resolution} cells)"
         name = str(idx) if lat.grid is None else f"{idx // lat.grid[1]},{idx % lat.grid[1]}"
         text = f"<b>latent {lat.labels[idx]}</b><br>{_verdict(m, problem, judge)}<br><i>{how}</i>"
-        frames.append(go.Frame(name=name, data=[_shape_trace(shape, ctx.grid, d)], traces=[0],
+        data = [_shape_trace(shape, ctx.grid, d)] + ([_marks_trace(problem, shape, ctx.grid)] if marked else [])
+        frames.append(go.Frame(name=name, data=data, traces=list(range(len(data))),
                                layout={"annotations": [note(text)]}))
         names.append(name)
         shapes.append(shape)
-    fig = go.Figure(data=[frames[0].data[0], *_problem_traces(problem, res)], frames=frames if len(frames) > 1 else None)
+    fig = go.Figure(data=[*frames[0].data, *_problem_traces(problem, res)], frames=frames if len(frames) > 1 else None)
     lo, hi = problem.domain.lo, problem.domain.hi
     layout: dict = {"title": {"text": title}, "annotations": [note(frames[0].layout.annotations[0].text)],
                     "margin": {"r": 260}, "height": 620, "legend": {"orientation": "h", "y": -0.02}}
