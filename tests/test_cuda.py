@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 
 import pytest
+import yaml
 
 from ginn.cli import main
 
@@ -94,3 +95,25 @@ def test_every_task_kind_steps_on_cuda(args, tmp_path, capsys, few_heldout_check
     assert code == 0, err
     status = json.loads((run / "status.json").read_text())
     assert status["status"] == "completed" and status["step"] == 2
+
+
+MANUFACTURING = {
+    "area": {"max": 8.0}, "min_thickness": 0.05, "min_gap": 0.05, "min_radius": 0.05,
+    "overhang": {"angle": 45, "up": [0, 1], "plate": -0.4},
+    "faces": [{"region": {"type": "rectangle", "lo": [-0.85, 0.3], "hi": [-0.55, 0.45]}, "normal": [0, 1]}],
+}
+
+
+def test_manufacturing_tolerances_train_and_are_judged_on_cuda(tmp_path, capsys, few_heldout_checks):
+    """Every manufacturing term steps on CUDA and ginn eval measures every one of them there."""
+    spec = yaml.safe_load((Path(__file__).resolve().parents[1] / "benchmarks" / "volume" / "obstacle-35.yaml").read_text())
+    spec["tolerances"] = MANUFACTURING
+    path = tmp_path / "spec.yaml"
+    path.write_text(yaml.safe_dump(spec))
+    run = tmp_path / "run"
+    code, _, err = _run(["train", str(path), "--iterations", "4", "--device", DEVICE, "--out", str(run), "--no-results",
+                         "--quiet", "--set", "training.feasibility_checks=1"], capsys)
+    assert code == 0, err
+    m = _eval(run, DEVICE, capsys)
+    for key in ("boundary_area", "thickness_removed", "gap_filled", "overhang_share", "sharp_share", "face_deviation"):
+        assert all(key in s for s in m["shapes"]), key
