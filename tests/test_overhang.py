@@ -104,3 +104,23 @@ def test_loss_is_how_far_each_normal_points_down_beyond_the_limit(beta, expected
     assert float(terms["overhang"].detach()) == pytest.approx(expected, abs=1e-5)
     if expected > 0:
         terms["overhang"].backward()  # differentiable w.r.t. the parameters through the normals
+
+
+class _Slab(torch.nn.Module):
+    """The slab |y - 0.2| <= 0.1: its top faces up, its underside straight down."""
+
+    def __init__(self):
+        super().__init__()
+        self.p = torch.nn.Parameter(torch.zeros(()))
+
+    def forward(self, x, z=None):
+        return (x[:, 1] - 0.2).abs() - 0.1 + 0 * self.p
+
+
+def test_loss_is_per_unit_of_down_facing_boundary():
+    """Half of the slab's boundary faces down, straight: 1 - sin 45 per down-facing sample, as much
+    as a shape that faces only down."""
+    spec = _spec({"angle": 45, "up": [0, 1]})
+    task = make_task(spec, spec.config(None, {"sampling": {"n_domain": 2048, "n_boundary": 128}}))
+    terms = task.loss_terms(_Slab(), 0, {"overhang", "eikonal"}, torch.Generator().manual_seed(0))
+    assert float(terms["overhang"].detach()) == pytest.approx(1 - math.sin(math.radians(45)), abs=1e-5)

@@ -8,9 +8,11 @@ height ``plate`` along ``up`` (the domain's lowest point along ``up`` when the s
 the plate and the interfaces are exempt within the interface tolerance
 ``tolerances.interface * unit_scale``.
 
-Loss: at the surface samples (points projected onto ``f = 0``) that are not exempt, the mean of
-``relu(-n . up - sin(angle))``, ``n = grad f / |grad f|`` differentiable w.r.t. the parameters:
-how far each normal points down beyond the limit. It rotates the normals of the overhanging parts
+Loss: at the surface samples (points projected onto ``f = 0``) that are not exempt, the sum of
+``relu(-n . up - sin(angle))``, ``n = grad f / |grad f|`` differentiable w.r.t. the parameters (how
+far each normal points down beyond the limit), over the number of samples that face down: per
+unit of down-facing boundary, as the verdict measures, so that its scale does not depend on how
+much of a shape faces up. It rotates the normals of the overhanging parts
 towards the limit, which raises their underside into a self-supporting slope; a normal has no
 scale, so its weight is a number like the prescribed normals'.
 """
@@ -125,7 +127,9 @@ class Overhang(Constraint):
         z = None if batch.Z is None else batch.latents_of(srf.x)[ok]
         g = fields.evaluate(batch.model, p[ok], z, grad=True, create_graph=True).grad
         n = g / g.norm(dim=-1, keepdim=True).clamp_min(1e-12)
-        return torch.relu(-(n @ self.up) - self.limit).mean()
+        down = -(n @ self.up)
+        facing = (down > 0).sum().clamp_min(1)
+        return torch.relu(down - self.limit).sum() / facing
 
     def target(self) -> float:
         """0: no surface sample overhangs."""
