@@ -88,3 +88,28 @@ def union(*sdfs):
         return torch.stack([s(x) for s in sdfs]).min(dim=0).values
 
     return f
+
+
+class DiskField(torch.nn.Module):
+    """The signed distance to the circle of radius ``r`` at the origin, ``r`` a parameter (a model
+    whose loss terms can be differentiated)."""
+
+    def __init__(self, r):
+        super().__init__()
+        self.r = torch.nn.Parameter(torch.tensor(r))
+
+    def forward(self, x, z=None):
+        return x.norm(dim=-1) - self.r
+
+
+class LineField(torch.nn.Module):
+    """The signed distance to the line through the origin with unit normal at ``beta`` degrees, the
+    normal a parameter."""
+
+    def __init__(self, beta):
+        super().__init__()
+        b = math.radians(beta)
+        self.n = torch.nn.Parameter(torch.tensor([math.cos(b), math.sin(b)]))
+
+    def forward(self, x, z=None):
+        return x @ self.n

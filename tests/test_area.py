@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 import torch
 
+from _shapes import DiskField
 from ginn.constraints import Area, AreaVerdict
 from ginn.constraints.area import coarea_estimate
 from ginn.errors import SpecError
@@ -65,21 +66,12 @@ def test_spec_and_verdict():
             _spec(bad)
 
 
-class _Disk(torch.nn.Module):
-    def __init__(self, r):
-        super().__init__()
-        self.r = torch.nn.Parameter(torch.tensor(r))
-
-    def forward(self, x, z=None):
-        return x.norm(dim=-1) - self.r
-
-
 def test_loss_is_the_excess_over_the_bound_relative_to_it():
     """A circle of length 2 pi 0.4 against at most half of it: 1 plus the standard error relative to
     the bound (about 0.06 with 65536 samples), within three standard errors."""
     spec = _spec(math.pi * 0.4)
     task = make_task(spec, spec.config(None, {"sampling": {"n_domain": 65536}}))
     assert [c for c in task.constraints if isinstance(c, Area)]
-    terms = task.loss_terms(_Disk(0.4), 0, {"area", "eikonal"}, torch.Generator().manual_seed(0))
+    terms = task.loss_terms(DiskField(0.4), 0, {"area", "eikonal"}, torch.Generator().manual_seed(0))
     assert float(terms["area"].detach()) == pytest.approx(1.06, abs=0.2)
-    assert float(task.loss_terms(_Disk(0.1), 0, {"area", "eikonal"}, torch.Generator().manual_seed(0))["area"].detach()) == 0
+    assert float(task.loss_terms(DiskField(0.1), 0, {"area", "eikonal"}, torch.Generator().manual_seed(0))["area"].detach()) == 0

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 import torch
 
+from _shapes import LineField
 from ginn.constraints import FlatFaces, FlatFacesVerdict
 from ginn.errors import SpecError
 from ginn.extract.boundary import extract_boundary
@@ -70,22 +71,10 @@ def test_spec_checks_the_normal_and_the_angle():
             _spec(bad)
 
 
-class _Line(torch.nn.Module):
-    """The signed distance to the line through the origin with unit normal at ``beta`` degrees."""
-
-    def __init__(self, beta):
-        super().__init__()
-        b = math.radians(beta)
-        self.n = torch.nn.Parameter(torch.tensor([math.cos(b), math.sin(b)]))
-
-    def forward(self, x, z=None):
-        return x @ self.n
-
-
 @pytest.mark.parametrize("beta", [90.0, 80.0, 60.0])
 def test_loss_is_one_minus_the_cosine_to_the_face_normal(beta):
     spec = _spec([{"region": {"type": "rectangle", "lo": [-0.5, -0.5], "hi": [0.5, 0.5]}, "normal": [0, 1]}])
     task = make_task(spec, spec.config(None, {"sampling": {"n_domain": 2048, "n_boundary": 64}}))
     assert [c for c in task.constraints if isinstance(c, FlatFaces)]
-    terms = task.loss_terms(_Line(beta), 0, {"faces", "eikonal"}, torch.Generator().manual_seed(0))
+    terms = task.loss_terms(LineField(beta), 0, {"faces", "eikonal"}, torch.Generator().manual_seed(0))
     assert float(terms["faces"].detach()) == pytest.approx(1 - math.cos(math.radians(90 - beta)), abs=1e-6)

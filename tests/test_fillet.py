@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 import torch
 
+from _shapes import DiskField
 from ginn.constraints import MinRadius, MinRadiusVerdict
 from ginn.errors import SpecError
 from ginn.extract.boundary import extract_boundary
@@ -89,20 +90,11 @@ def test_spec_reads_a_number_as_the_radius():
             _problem(bad)
 
 
-class _Disk(torch.nn.Module):
-    def __init__(self, r):
-        super().__init__()
-        self.r = torch.nn.Parameter(torch.tensor(r))
-
-    def forward(self, x, z=None):
-        return x.norm(dim=-1) - self.r
-
-
 @pytest.mark.parametrize("radius, expected", [(0.2, 1.0), (0.05, 0.0)])
 def test_loss_is_the_curvature_beyond_the_bound_in_units_of_it(radius, expected):
     """A disk of radius 0.1 (curvature 10): kappa r - 1 = 1 for r = 0.2, nothing for 0.05."""
     spec = _problem(radius)
     task = make_task(spec, spec.config(None, {"sampling": {"n_domain": 2048, "n_boundary": 64}}))
     assert [c for c in task.constraints if isinstance(c, MinRadius)]
-    terms = task.loss_terms(_Disk(0.1), 0, {"fillet", "eikonal"}, torch.Generator().manual_seed(0))
+    terms = task.loss_terms(DiskField(0.1), 0, {"fillet", "eikonal"}, torch.Generator().manual_seed(0))
     assert float(terms["fillet"].detach()) == pytest.approx(expected, abs=1e-4)

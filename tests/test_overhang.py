@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 import torch
 
+from _shapes import LineField
 from ginn.constraints import Overhang, OverhangVerdict
 from ginn.errors import SpecError
 from ginn.extract.boundary import extract_boundary
@@ -82,25 +83,13 @@ def test_verdict_reads_the_share_and_the_plate_defaults_to_the_domain_bottom():
     assert OverhangVerdict(_spec({"angle": 45, "up": [0, -1]}).build()).plate == -1.0  # lowest along -y: y = 1
 
 
-class _Plane(torch.nn.Module):
-    """The signed distance to the line through the origin with unit normal at ``beta`` degrees."""
-
-    def __init__(self, beta):
-        super().__init__()
-        b = math.radians(beta)
-        self.n = torch.nn.Parameter(torch.tensor([math.cos(b), math.sin(b)]))
-
-    def forward(self, x, z=None):
-        return x @ self.n
-
-
 @pytest.mark.parametrize("beta, expected", [(-60.0, math.sin(math.radians(60)) - math.sin(math.radians(45))),
                                             (-30.0, 0.0), (60.0, 0.0)])
 def test_loss_is_how_far_each_normal_points_down_beyond_the_limit(beta, expected):
     spec = _spec({"angle": 45, "up": [0, 1]})
     task = make_task(spec, spec.config(None, {"sampling": {"n_domain": 2048, "n_boundary": 64}}))
     assert [c for c in task.constraints if isinstance(c, Overhang)]
-    terms = task.loss_terms(_Plane(beta), 0, {"overhang", "eikonal"}, torch.Generator().manual_seed(0))
+    terms = task.loss_terms(LineField(beta), 0, {"overhang", "eikonal"}, torch.Generator().manual_seed(0))
     assert float(terms["overhang"].detach()) == pytest.approx(expected, abs=1e-5)
     if expected > 0:
         terms["overhang"].backward()  # differentiable w.r.t. the parameters through the normals

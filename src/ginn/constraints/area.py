@@ -17,17 +17,16 @@ so that the term has no scale.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
 from typing import Any
 
 import torch
 from torch import Tensor
 
-from ..problems.problem import Bounds, Problem
+from ..problems.problem import Problem
 from .base import Constraint, Setting
 from .batch import Batch
 from .samples import DOMAIN
-from .verdict import Verdict, Violation, number_text
+from .verdict import IntervalVerdict
 from .volume import step_width
 
 __all__ = ["AreaVerdict", "Area", "coarea_estimate"]
@@ -44,46 +43,20 @@ def coarea_estimate(f: Tensor, g: Tensor, width: float, volume: float) -> tuple[
     return y.mean(dim=1), err
 
 
-class AreaVerdict(Verdict):
+class AreaVerdict(IntervalVerdict):
     """``boundary_area`` within ``tolerances.area`` (problems that state it)."""
 
     name = "area"
+    metric = "boundary_area"
 
     def __init__(self, problem: Problem):
-        super().__init__(problem)
-        self.metrics = ("boundary_area",)
-        self.bounds: Bounds = problem.tolerances.area
+        super().__init__(problem, problem.tolerances.area)
 
     def measure(self, shape, context, field, z) -> dict[str, Any]:
         b = shape.boundary
         if b.n_elements == 0:
             return {"boundary_area": 0.0}
         return {"boundary_area": float(b.element_measures()[b.level_set_elements()].sum())}
-
-    def violation(self, metrics: Mapping) -> Violation | None:
-        v = metrics.get("boundary_area")
-        b = self.bounds
-        if v is None or not b.violated(v):
-            return None
-        return Violation(float(v), b.max if b.max is not None and v > b.max else b.min)
-
-    def ratio(self, metrics: Mapping) -> float | None:
-        """The larger of ``A / max`` and ``min / A`` (above 1: violated)."""
-        v = metrics.get("boundary_area")
-        b = self.bounds
-        if v is None:
-            return None
-        out = 0.0
-        if b.max is not None:
-            out = v / b.max
-        if b.min is not None and b.min > 0:
-            out = max(out, b.min / v if v > 0 else math.inf)
-        return out
-
-    @classmethod
-    def describe(cls, v: Violation) -> str:
-        side = ">" if v.value > v.bound else "<"
-        return f"area {number_text(v.value)} {side} {number_text(v.bound)}"
 
 
 class Area(Constraint):

@@ -24,17 +24,33 @@ from .volume import VolumeFraction, VolumeFractionVerdict
 __all__ = ["shape_constraints", "problem_verdicts", "verdicts_of", "describe", "verdict_text"]
 
 #: the built-in verdicts by name (their texts)
+#: the terms a tolerance adds, each with its verdict, in the order of the loss terms and of the
+#: verdicts: ``(tolerances field, constraint, verdict)``, present where the field is stated
+TOLERANCE_TERMS: tuple[tuple[str, type[Constraint], type[Verdict]], ...] = (
+    ("volume_fraction", VolumeFraction, VolumeFractionVerdict),
+    ("area", Area, AreaVerdict),
+    ("min_thickness", MinThickness, MinThicknessVerdict),
+    ("min_gap", MinGap, MinGapVerdict),
+    ("overhang", Overhang, OverhangVerdict),
+    ("min_radius", MinRadius, MinRadiusVerdict),
+    ("faces", FlatFaces, FlatFacesVerdict),
+)
+
 BUILTIN_VERDICTS: dict[str, type[Verdict]] = {
     v.name: v for v in (InterfaceVerdict, VolumeOutside, Connected, TopologyTargets, SymmetryVerdict, LeastDiversity,
-                        VolumeFractionVerdict, MinThicknessVerdict, MinGapVerdict, OverhangVerdict, MinRadiusVerdict,
-                        AreaVerdict, FlatFacesVerdict)}
+                        *(verdict for _, _, verdict in TOLERANCE_TERMS))}
+
+
+def _stated(problem: Problem, field: str) -> bool:
+    v = getattr(problem.tolerances, field)
+    return v is not None and v != ()
 
 
 def shape_constraints(setting: Setting) -> list[Constraint]:
     """Every term a shape problem can have, in the order of its loss terms: the eikonal
     objective, containment in E and out of the obstacles, the interfaces and their normals, the
     curvature objectives, the diversity (generative models), connectedness, the hole targets, the
-    volume and area bounds, the least feature sizes, the overhang, the fillet radius and the flat faces.
+    terms of the other tolerances (:data:`TOLERANCE_TERMS`).
     A term applies where the geometry has what it acts on (E, obstacles, interfaces with normals,
     topology targets); whether it is active is the trainer's business (its weight and start)."""
     p = setting.problem
@@ -53,28 +69,14 @@ def shape_constraints(setting: Setting) -> list[Constraint]:
     out.append(Connectedness(setting))
     if p.topology.targets:
         out.append(HoleTargets(setting))
-    if p.tolerances.volume_fraction is not None:
-        out.append(VolumeFraction(setting))
-    if p.tolerances.area is not None:
-        out.append(Area(setting))
-    if p.tolerances.min_thickness is not None:
-        out.append(MinThickness(setting))
-    if p.tolerances.min_gap is not None:
-        out.append(MinGap(setting))
-    if p.tolerances.overhang is not None:
-        out.append(Overhang(setting))
-    if p.tolerances.min_radius is not None:
-        out.append(MinRadius(setting))
-    if p.tolerances.faces:
-        out.append(FlatFaces(setting))
+    out += [term(setting) for field, term, _ in TOLERANCE_TERMS if _stated(p, field)]
     return out
 
 
 def problem_verdicts(problem: Problem) -> list[Verdict]:
     """The verdicts of ``problem``'s tolerances, in the order ``ginn eval`` reports them: the
-    interfaces, the volume outside E, connectedness, the topology targets, the symmetry, the
-    volume and area bounds, the least thickness and gap, the overhang, the fillet radius, the flat
-    faces, and the least diversity of the set."""
+    interfaces, the volume outside E, connectedness, the topology targets, the symmetry, those of
+    the other tolerances (:data:`TOLERANCE_TERMS`), and the least diversity of the set."""
     out: list[Verdict] = []
     if problem.interfaces:
         out.append(InterfaceVerdict(problem))
@@ -85,20 +87,7 @@ def problem_verdicts(problem: Problem) -> list[Verdict]:
         out.append(TopologyTargets(problem))
     if problem.symmetry is not None:
         out.append(SymmetryVerdict(problem))
-    if problem.tolerances.volume_fraction is not None:
-        out.append(VolumeFractionVerdict(problem))
-    if problem.tolerances.area is not None:
-        out.append(AreaVerdict(problem))
-    if problem.tolerances.min_thickness is not None:
-        out.append(MinThicknessVerdict(problem))
-    if problem.tolerances.min_gap is not None:
-        out.append(MinGapVerdict(problem))
-    if problem.tolerances.overhang is not None:
-        out.append(OverhangVerdict(problem))
-    if problem.tolerances.min_radius is not None:
-        out.append(MinRadiusVerdict(problem))
-    if problem.tolerances.faces:
-        out.append(FlatFacesVerdict(problem))
+    out += [verdict(problem) for field, _, verdict in TOLERANCE_TERMS if _stated(problem, field)]
     if problem.tolerances.diversity is not None:
         out.append(LeastDiversity(problem))
     return out

@@ -25,6 +25,7 @@ import torch
 from torch import Tensor
 
 from ..extract.curvature import boundary_curvatures, largest_curvature
+from ..geometry.base import near_any_interface
 from ..problems.problem import CurvatureBound, Problem
 from .base import Constraint, Setting, Stage
 from .batch import Batch
@@ -38,14 +39,7 @@ CLIP = 10.0
 
 def near_an_interface(problem: Problem, x: Tensor) -> Tensor:
     """``(n,)`` bool: the points of ``x (n, d)`` within the interface tolerance of an interface."""
-    tol = float(problem.tolerances.interface) * float(problem.unit_scale)
-    out = torch.zeros(x.shape[0], dtype=torch.bool, device=x.device)
-    for itf in problem.interfaces:
-        try:
-            out |= itf.distance(x) <= tol
-        except NotImplementedError:
-            continue
-    return out
+    return near_any_interface(problem.interfaces, x, problem.interface_tolerance)
 
 
 class MinRadiusVerdict(Verdict):

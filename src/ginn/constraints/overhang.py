@@ -29,6 +29,7 @@ from torch import Tensor
 
 from .. import fields
 from ..extract.overhang import exempt_elements, overhang_share
+from ..geometry.base import near_any_interface
 from ..problems.problem import Overhang as OverhangBound
 from ..problems.problem import Problem
 from .base import Constraint, Setting, Stage
@@ -47,11 +48,6 @@ def plate_height(problem: Problem, bound: OverhangBound) -> float:
     return float(sum(min(u * a, u * b) for u, a, b in zip(bound.up, lo, hi)))
 
 
-def exempt_distance(problem: Problem) -> float:
-    """How near the plate or an interface a surface is exempt: the interface tolerance."""
-    return float(problem.tolerances.interface) * float(problem.unit_scale)
-
-
 class OverhangVerdict(Verdict):
     """``overhang_share`` at most ``tolerances.overhang.share`` (module docstring)."""
 
@@ -66,7 +62,7 @@ class OverhangVerdict(Verdict):
     def measure(self, shape, context, field, z) -> dict[str, Any]:
         b = shape.boundary
         up = np.asarray(self.bound.up, dtype=np.float64)
-        exempt = exempt_elements(b, up, self.plate, exempt_distance(self.problem), self.problem.interfaces)
+        exempt = exempt_elements(b, up, self.plate, self.problem.interface_tolerance, self.problem.interfaces)
         return {"overhang_share": overhang_share(b, self.bound.up, self.bound.angle, exempt)}
 
     def violation(self, metrics: Mapping) -> Violation | None:
@@ -100,7 +96,7 @@ class Overhang(Constraint):
         self.up = torch.tensor(b.up, device=setting.device, dtype=setting.dtype)
         self.limit = math.sin(math.radians(b.angle))
         self.plate = self._verdict.plate
-        self.tol = exempt_distance(setting.problem)
+        self.tol = setting.problem.interface_tolerance
 
     @property
     def verdict(self) -> OverhangVerdict:
@@ -108,13 +104,8 @@ class Overhang(Constraint):
 
     def _exempt(self, p: Tensor) -> Tensor:
         """``(m,)`` bool: surface points on the plate or near an interface."""
-        out = ((p @ self.up) - self.plate).abs() <= self.tol
-        for itf in self.setting.problem.interfaces:
-            try:
-                out |= itf.distance(p) <= self.tol
-            except NotImplementedError:
-                continue
-        return out
+        return (((p @ self.up) - self.plate).abs() <= self.tol) | near_any_interface(self.setting.problem.interfaces, p,
+                                                                                    self.tol)
 
     def loss(self, batch: Batch) -> Tensor | None:
         srf = batch.surface()

@@ -12,13 +12,14 @@ above 1 violated). A set verdict
 from __future__ import annotations
 
 import abc
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
-from ..problems.problem import Problem
+from ..problems.problem import Bounds, Problem
 
-__all__ = ["Violation", "Verdict", "number_text"]
+__all__ = ["Violation", "Verdict", "IntervalVerdict", "number_text"]
 
 
 @dataclass(frozen=True)
@@ -93,3 +94,40 @@ class Verdict(abc.ABC):
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}()"
+
+
+class IntervalVerdict(Verdict):
+    """One per-shape metric ``metric`` within ``bounds`` (a :class:`~ginn.problems.problem.Bounds`
+    from the problem's tolerances, set by the subclass)."""
+
+    metric: ClassVar[str]
+
+    def __init__(self, problem: Problem, bounds: Bounds):
+        super().__init__(problem)
+        self.metrics = (self.metric,)
+        self.bounds = bounds
+
+    def violation(self, metrics: Mapping) -> Violation | None:
+        v = metrics.get(self.metric)
+        b = self.bounds
+        if b is None or v is None or not b.violated(v):
+            return None
+        return Violation(float(v), b.max if b.max is not None and v > b.max else b.min)
+
+    def ratio(self, metrics: Mapping) -> float | None:
+        """The larger of ``value / max`` and ``min / value`` (above 1: violated)."""
+        v = metrics.get(self.metric)
+        b = self.bounds
+        if b is None or v is None:
+            return None
+        out = 0.0
+        if b.max is not None:
+            out = v / b.max if b.max > 0 else (math.inf if v > 0 else 0.0)
+        if b.min is not None and b.min > 0:
+            out = max(out, b.min / v if v > 0 else math.inf)
+        return out
+
+    @classmethod
+    def describe(cls, v: Violation) -> str:
+        side = ">" if v.value > v.bound else "<"
+        return f"{cls.name} {number_text(v.value)} {side} {number_text(v.bound)}"

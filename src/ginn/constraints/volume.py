@@ -22,7 +22,6 @@ volumes) within the bounds.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
 
 import torch
 from torch import Tensor
@@ -31,45 +30,19 @@ from ..problems.problem import Problem
 from .base import Constraint, Setting
 from .batch import Batch
 from .samples import DOMAIN
-from .verdict import Verdict, Violation, number_text
+from .verdict import IntervalVerdict
 
 __all__ = ["VolumeFractionVerdict", "VolumeFraction", "step_width"]
 
 
-class VolumeFractionVerdict(Verdict):
+class VolumeFractionVerdict(IntervalVerdict):
     """``volume_fraction`` within ``tolerances.volume_fraction`` (problems that state it)."""
 
     name = "volume_fraction"
+    metric = "volume_fraction"
 
     def __init__(self, problem: Problem):
-        super().__init__(problem)
-        self.metrics = ("volume_fraction",)
-        self.bounds = problem.tolerances.volume_fraction
-
-    def violation(self, metrics: Mapping) -> Violation | None:
-        v = metrics.get("volume_fraction")
-        b = self.bounds
-        if b is None or v is None or not b.violated(v):
-            return None
-        return Violation(float(v), b.max if b.max is not None and v > b.max else b.min)
-
-    def ratio(self, metrics: Mapping) -> float | None:
-        """The larger of ``V / max`` and ``min / V`` (above 1: violated)."""
-        v = metrics.get("volume_fraction")
-        b = self.bounds
-        if b is None or v is None:
-            return None
-        out = 0.0
-        if b.max is not None:
-            out = v / b.max if b.max > 0 else (math.inf if v > 0 else 0.0)
-        if b.min is not None and b.min > 0:
-            out = max(out, b.min / v if v > 0 else math.inf)
-        return out
-
-    @classmethod
-    def describe(cls, v: Violation) -> str:
-        side = ">" if v.value > v.bound else "<"
-        return f"{cls.name} {number_text(v.value)} {side} {number_text(v.bound)}"
+        super().__init__(problem, problem.tolerances.volume_fraction)
 
 
 def step_width(setting: Setting) -> float:

@@ -70,6 +70,7 @@ from torch import Tensor
 from .. import fields
 from ..config import STRAIN_CLIP
 from ..extract.boundary import Boundary
+from ..extract.curvature import level_set_points
 from ..extract.export import watertight_mesh
 from ..extract.grid import Grid, interpolate, label_components
 from ..extract.sampling import field_dtype_device
@@ -303,16 +304,10 @@ def surface_strain(
     by two Newton steps (each at most ``step_cap`` long); Hessians come from
     :func:`ginn.fields.evaluate` and the strain from :func:`ginn.fields.surface_strain`.
     """
-    rng = rng or np.random.default_rng(0)
-    x = boundary.sample(n_samples, rng, level_set_only=True)
-    if x.shape[0] == 0:
+    on = level_set_points(field, z, boundary, n_samples, rng or np.random.default_rng(0), step_cap, dtype)
+    if on is None:
         return None
-    dt, dev = field_dtype_device(field, z)
-    dt = dtype or dt
-    xt = torch.as_tensor(x, dtype=dt, device=dev)
-    zz = None if z is None else z.reshape(1, -1).to(dt).expand(xt.shape[0], -1)
-    proj = project_to_zero(field, xt, zz, steps=2, tol=float("inf"), max_step=step_cap)
-    xp = torch.where(torch.isfinite(proj.x).all(dim=1, keepdim=True), proj.x, xt)
+    xp, zz = on
     v = fields.evaluate(field, xp, zz, grad=False, hessian_at=True, create_graph=False)
     s = fields.surface_strain(v.hessian_grad, v.hessian)
     s = torch.nan_to_num(s, nan=clip, posinf=clip).clamp(max=clip)
@@ -335,16 +330,11 @@ def symmetry_error(
     to the boundary, over area-uniform samples ``x`` of the zero level set (the extracted boundary
     moved onto ``f = 0`` by two Newton steps) whose image ``T x`` lies in the domain. None without
     such samples."""
-    rng = rng or np.random.default_rng(0)
-    x = boundary.sample(n_samples, rng, level_set_only=True)
-    if x.shape[0] == 0:
+    on = level_set_points(field, z, boundary, n_samples, rng or np.random.default_rng(0), step_cap)
+    if on is None:
         return None
-    dt, dev = field_dtype_device(field, z)
-    xt = torch.as_tensor(x, dtype=dt, device=dev)
-    zz = None if z is None else z.reshape(1, -1).to(dt).expand(xt.shape[0], -1)
-    proj = project_to_zero(field, xt, zz, steps=2, tol=float("inf"), max_step=step_cap)
-    xp = torch.where(torch.isfinite(proj.x).all(dim=1, keepdim=True), proj.x, xt)
-    lo, hi = domain.tensors(dev, dt)
+    xp, zz = on
+    lo, hi = domain.tensors(xp.device, xp.dtype)
     worst = None
     for _, T in symmetry.generators():
         y = T(xp)

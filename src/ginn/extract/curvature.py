@@ -21,7 +21,7 @@ from ..levelset import project_to_zero
 from .boundary import Boundary
 from .sampling import field_dtype_device
 
-__all__ = ["largest_curvature", "boundary_points", "boundary_curvatures"]
+__all__ = ["largest_curvature", "level_set_points", "boundary_points", "boundary_curvatures"]
 
 
 def largest_curvature(grad: Tensor, hess: Tensor) -> Tensor:
@@ -32,13 +32,17 @@ def largest_curvature(grad: Tensor, hess: Tensor) -> Tensor:
     return fields.principal_curvatures(grad, hess).abs().amax(dim=-1)
 
 
-def _on_level_set(field: Field, z: Tensor | None, boundary: Boundary, n_samples: int, rng: np.random.Generator,
-                   step_cap: float | None) -> tuple[Tensor, Tensor | None] | None:
-    """Area-uniform points of the boundary's level-set part moved onto ``f = 0`` and their codes."""
+def level_set_points(field: Field, z: Tensor | None, boundary: Boundary, n_samples: int, rng: np.random.Generator,
+                     step_cap: float | None, dtype: torch.dtype | None = None) -> tuple[Tensor, Tensor | None] | None:
+    """``n_samples`` area-uniform points of the boundary's level-set part moved onto ``f = 0`` by
+    two Newton steps of at most ``step_cap`` (a point whose projection fails keeps its place),
+    ``(m, d)``, and their codes ``(m, k)`` (None without a latent); None when the boundary has no
+    level-set part. In the field's dtype unless ``dtype`` is given."""
     x = boundary.sample(n_samples, rng, level_set_only=True)
     if x.shape[0] == 0:
         return None
     dt, dev = field_dtype_device(field, z)
+    dt = dtype or dt
     xt = torch.as_tensor(x, dtype=dt, device=dev)
     zz = None if z is None else z.reshape(1, -1).to(dt).expand(xt.shape[0], -1)
     proj = project_to_zero(field, xt, zz, steps=2, tol=float("inf"), max_step=step_cap)
@@ -51,7 +55,7 @@ def boundary_points(field: Field, z: Tensor | None, boundary: Boundary, n_sample
     """``n_samples`` area-uniform points on ``f = 0`` near ``boundary`` and the field's outward
     unit normal at each, ``(m, d)`` each, float64 (module docstring; empty when the boundary has no
     level-set part)."""
-    on = _on_level_set(field, z, boundary, n_samples, rng or np.random.default_rng(0), step_cap)
+    on = level_set_points(field, z, boundary, n_samples, rng or np.random.default_rng(0), step_cap)
     if on is None:
         return np.zeros((0, boundary.dim)), np.zeros((0, boundary.dim))
     xp, zz = on
@@ -66,7 +70,7 @@ def boundary_curvatures(field: Field, z: Tensor | None, boundary: Boundary, n_sa
     """``n_samples`` area-uniform points on ``f = 0`` near ``boundary`` and the largest absolute
     principal curvature at each, ``(m, d)`` and ``(m,)`` float64 (module docstring; empty when the
     boundary has no level-set part)."""
-    on = _on_level_set(field, z, boundary, n_samples, rng or np.random.default_rng(0), step_cap)
+    on = level_set_points(field, z, boundary, n_samples, rng or np.random.default_rng(0), step_cap)
     if on is None:
         return np.zeros((0, boundary.dim)), np.zeros(0)
     xp, zz = on

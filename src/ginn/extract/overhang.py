@@ -21,7 +21,7 @@ from collections.abc import Sequence
 import numpy as np
 import torch
 
-from ..geometry.base import Interface
+from ..geometry.base import Interface, near_any_interface
 from .boundary import Boundary
 
 __all__ = ["element_normals", "overhang_share", "exempt_elements"]
@@ -47,15 +47,9 @@ def exempt_elements(boundary: Boundary, up: np.ndarray, plate: float, tol: float
     c = V[E].mean(axis=1)
     out = np.abs(c @ up - plate) <= tol
     out |= ~boundary.level_set_elements()
-    if len(c):
-        x = torch.as_tensor(c, dtype=torch.float64)
-        for itf in interfaces:
-            try:
-                with torch.no_grad():
-                    d = itf.distance(x).double().cpu().numpy()
-            except NotImplementedError:
-                continue
-            out |= d <= tol
+    if len(c) and interfaces:
+        with torch.no_grad():
+            out |= near_any_interface(interfaces, torch.as_tensor(c, dtype=torch.float64), tol).cpu().numpy()
     return out
 
 

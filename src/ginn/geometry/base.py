@@ -79,6 +79,18 @@ class Interface(abc.ABC):
         return None
 
 
+def near_any_interface(interfaces, x: Tensor, tol: float) -> Tensor:
+    """``(n,)`` bool: the points of ``x (n, d)`` within ``tol`` of one of ``interfaces`` (an
+    interface without :meth:`Interface.distance` marks none)."""
+    out = torch.zeros(x.shape[0], dtype=torch.bool, device=x.device)
+    for itf in interfaces:
+        try:
+            out |= itf.distance(x) <= tol
+        except NotImplementedError:
+            continue
+    return out
+
+
 @dataclass(frozen=True)
 class Box:
     """An axis-aligned box ``[lo, hi]`` (the domain X): ``lo``, ``hi`` are length-d tuples."""

@@ -187,5 +187,10 @@ class Problem:
         return self.domain.dim
 
     @property
+    def interface_tolerance(self) -> float:
+        """The interface tolerance as a distance, ``tolerances.interface * unit_scale``."""
+        return float(self.tolerances.interface) * float(self.unit_scale)
+
+    @property
     def n_interface_components(self) -> int:
         return sum(i.n_components for i in self.interfaces)

@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 from dataclasses import replace
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, ClassVar, Literal
 
 import torch
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError, ValidationInfo, field_validator, model_validator
@@ -183,20 +183,16 @@ class TolerancesSpec(Node):
         None, description="bounds on the area (2D: length) of each shape's boundary inside the domain, in the "
         "problem's units: {max: 2.5}, {min: 1.0}, or both; a number is the largest area")
 
-    @field_validator("volume_fraction", "area", mode="before")
-    @classmethod
-    def _number_is_max(cls, v: Any) -> Any:
-        return {"max": v} if isinstance(v, (int, float)) and not isinstance(v, bool) else v
+    #: the key a bare number stands for, by field: ``min_thickness: 0.05`` is ``{size: 0.05}``
+    NUMBER_MEANS: ClassVar[dict[str, str]] = {"volume_fraction": "max", "area": "max", "min_thickness": "size",
+                                               "min_gap": "size", "min_radius": "radius"}
 
-    @field_validator("min_thickness", "min_gap", mode="before")
+    @field_validator("volume_fraction", "area", "min_thickness", "min_gap", "min_radius", mode="before")
     @classmethod
-    def _number_is_size(cls, v: Any) -> Any:
-        return {"size": v} if isinstance(v, (int, float)) and not isinstance(v, bool) else v
-
-    @field_validator("min_radius", mode="before")
-    @classmethod
-    def _number_is_radius(cls, v: Any) -> Any:
-        return {"radius": v} if isinstance(v, (int, float)) and not isinstance(v, bool) else v
+    def _a_number_is_its_main_key(cls, v: Any, info: ValidationInfo) -> Any:
+        if isinstance(v, (int, float)) and not isinstance(v, bool):
+            return {cls.NUMBER_MEANS[info.field_name]: v}
+        return v
 
 
 Count = Annotated[int, Field(ge=0, strict=True)]

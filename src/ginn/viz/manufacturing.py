@@ -10,7 +10,7 @@ import math
 import numpy as np
 from matplotlib.collections import LineCollection
 
-from ..constraints.overhang import exempt_distance, plate_height
+from ..constraints.overhang import plate_height
 from ..extract.boundary import Boundary
 from ..extract.grid import Grid
 from ..extract.morphology import opening
@@ -42,7 +42,7 @@ def violation_marks(problem: Problem, inside: np.ndarray, grid: Grid, boundary: 
         out["narrow"] = ~inside & ~opening(~inside, grid.spacing, t.min_gap.size)
     if t.overhang is not None and boundary.n_elements:
         up = np.asarray(t.overhang.up, dtype=np.float64)
-        exempt = exempt_elements(boundary, up, plate_height(problem, t.overhang), exempt_distance(problem),
+        exempt = exempt_elements(boundary, up, plate_height(problem, t.overhang), problem.interface_tolerance,
                                  problem.interfaces)
         down = -(element_normals(boundary) @ up)
         bad = (down > math.sin(math.radians(t.overhang.angle))) & ~exempt
