@@ -16,11 +16,13 @@ The public API, re-exported here (everything else is internal and may change):
 * training: :class:`Task`, :class:`Results`, :class:`ShapeTask`, :class:`Trainer`, :class:`Callback`
   (its plug-ins), :func:`make_task`, :data:`TASKS`
 * losses: the constraint losses, :func:`diversity`, :func:`project_to_zero`
+* structural physics: :mod:`ginn.physics` (:class:`~ginn.physics.ElementGrid`,
+  :class:`~ginn.physics.ElasticitySolver`, :func:`~ginn.physics.compliance`, :func:`~ginn.physics.simp`)
 * evaluation: :func:`evaluate_shapes`, :func:`check_feasibility` (the problem's tolerances), their
   results :class:`ShapeEvaluation`, :class:`ShapeMetrics`, :class:`FeasibilitySummary`
 """
 
-from . import constraints, fields
+from . import constraints, fields, physics
 from .config import RunConfig, build_config
 from .constraints import Constraint, SampleSet, Stage, Verdict, Violation, shape_constraints
 from .eval.feasibility import check_feasibility
@@ -93,5 +95,6 @@ __all__ = [
     "Task", "Results", "ShapeTask", "Trainer", "Callback", "make_task", "TASKS",
     "DesignRegionLoss", "ObstacleLoss", "InterfaceLoss", "NormalLoss", "EikonalLoss", "MeanCurvatureLoss",
     "StrainLoss", "diversity", "project_to_zero",
+    "physics",
     "evaluate_shapes", "check_feasibility", "ShapeEvaluation", "ShapeMetrics", "FeasibilitySummary",
 ]

@@ -1,0 +1,197 @@
+"""Linear elasticity on an :class:`~ginn.physics.grid.ElementGrid`: the stiffness of every shape of a
+batch from its element moduli, solved for every load case.
+
+``K(E) = sum_e E_e K0_e`` with ``K0`` the unit-modulus element matrix
+(:func:`~ginn.physics.elements.element_stiffness`), the same for every element of the grid. The
+fixed degrees of freedom are removed (zero displacement there); a load case is a vector of nodal
+forces. Two methods solve ``K u = f``:
+
+* ``direct``: the assembled sparse matrix of the free degrees of freedom (one scatter of the element
+  matrices into a precomputed CSR pattern), factorised once per shape by SuperLU (SciPy, minimum
+  degree ordering of ``A^T + A``) and solved for every load case;
+* ``cg``: matrix-free conjugate gradients in torch, preconditioned by the diagonal, every shape and
+  load case of the batch in one set of tensor operations on the moduli's device, warm-started from
+  the previous solve of a batch of the same size.
+
+``auto`` picks ``direct`` for 2D grids on the CPU and ``cg`` for 3D grids and on accelerators: on
+this project's CPU a 3D grid of 40 x 20 x 20 elements (54k unknowns) took 20 s to factorise and
+2.8 s by CG; a 2D grid of 240 x 80 elements 0.3 s and 3.0 s (``docs/structural.md``, "Solver").
+
+Public names: :class:`ElasticitySolver`, :data:`METHODS`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+import torch
+
+from .elements import element_stiffness
+from .grid import ElementGrid
+
+__all__ = ["ElasticitySolver", "METHODS"]
+
+METHODS = ("auto", "direct", "cg")
+
+
+class ElasticitySolver:
+    """Solves linear elasticity on ``grid`` for a batch of element-modulus fields.
+
+    Arguments:
+        grid: the element grid.
+        nu: Poisson's ratio (plane stress in 2D).
+        fixed: ``(n_dofs,)`` bool, the degrees of freedom held at zero.
+        forces: ``(L, n_dofs)`` nodal forces of the ``L`` load cases.
+        method: one of :data:`METHODS`.
+        rtol: relative residual at which CG stops.
+        max_iter: CG's iteration cap (a solve that reaches it raises).
+    """
+
+    def __init__(self, grid: ElementGrid, nu: float, fixed: np.ndarray, forces: np.ndarray, *,
+                 method: str = "auto", rtol: float = 1e-10, max_iter: int = 20_000) -> None:
+        if method not in METHODS:
+            raise ValueError(f"ElasticitySolver: method must be one of {METHODS}, not {method!r}")
+        fixed = np.asarray(fixed, dtype=bool).reshape(-1)
+        forces = np.atleast_2d(np.asarray(forces, dtype=np.float64))
+        if fixed.shape != (grid.n_dofs,) or forces.shape[1] != grid.n_dofs:
+            raise ValueError("ElasticitySolver: fixed needs (n_dofs,) and forces (L, n_dofs) entries")
+        self.grid = grid
+        self.nu = float(nu)
+        self.method = method
+        self.rtol = float(rtol)
+        self.max_iter = int(max_iter)
+        self.K0 = element_stiffness(grid.h, nu)  # (k, k)
+        self.fixed = fixed
+        self.free = np.flatnonzero(~fixed)
+        self.forces = forces
+        self._pattern: tuple | None = None
+        self._warm: dict = {}
+        self._torch_cache: dict = {}
+
+    @property
+    def n_loads(self) -> int:
+        return self.forces.shape[0]
+
+    def resolved_method(self, device: torch.device) -> str:
+        if self.method != "auto":
+            return self.method
+        return "direct" if device.type == "cpu" and self.grid.dim == 2 else "cg"
+
+    # --- assembly -------------------------------------------------------------------------------
+
+    def _sparsity(self) -> tuple:
+        """The CSR pattern of the free-dof matrix and, per kept (element, a, b) entry, its slot."""
+        if self._pattern is None:
+            g = self.grid
+            k = self.K0.shape[0]
+            index = np.full(g.n_dofs, -1, dtype=np.int64)
+            index[self.free] = np.arange(self.free.size)
+            edof = index[g.element_dofs]  # (ne, k)
+            rows = np.repeat(edof, k, axis=1).reshape(-1)
+            cols = np.tile(edof, (1, k)).reshape(-1)
+            keep = (rows >= 0) & (cols >= 0)
+            nf = self.free.size
+            key = rows[keep] * nf + cols[keep]
+            uniq, slot = np.unique(key, return_inverse=True)
+            indptr = np.searchsorted(uniq // nf, np.arange(nf + 1))
+            self._pattern = (keep, slot, uniq % nf, indptr, uniq.size)
+        return self._pattern
+
+    def stiffness(self, moduli: np.ndarray) -> sp.csr_matrix:
+        """The free-dof stiffness matrix of one shape with element moduli ``moduli`` ``(n_elements,)``."""
+        keep, slot, indices, indptr, nnz = self._sparsity()
+        vals = (np.asarray(moduli, dtype=np.float64)[:, None] * self.K0.reshape(1, -1)).reshape(-1)[keep]
+        data = np.bincount(slot, weights=vals, minlength=nnz)
+        n = self.free.size
+        return sp.csr_matrix((data, indices, indptr), shape=(n, n))
+
+    # --- solving --------------------------------------------------------------------------------
+
+    def solve(self, moduli: torch.Tensor) -> torch.Tensor:
+        """Displacements ``(B, L, n_dofs)`` (float64, on the moduli's device) for element moduli
+        ``(B, n_elements)`` (or ``(n_elements,)``: ``B = 1``)."""
+        E = torch.as_tensor(moduli).detach()
+        if E.dim() == 1:
+            E = E[None]
+        if E.shape[1] != self.grid.n_elements:
+            raise ValueError(f"ElasticitySolver.solve: {E.shape[1]} moduli for {self.grid.n_elements} elements")
+        if not bool(torch.all(E > 0)):
+            raise ValueError("ElasticitySolver.solve: every element modulus must be positive (give void a weak ersatz modulus)")
+        method = self.resolved_method(E.device)
+        if method == "cg":
+            return self._solve_cg(E.to(torch.float64))
+        En = E.to(torch.float64).cpu().numpy()
+        U = np.zeros((En.shape[0], self.n_loads, self.grid.n_dofs))
+        F = self.forces[:, self.free].T  # (nf, L)
+        for b in range(En.shape[0]):
+            lu = spla.splu(self.stiffness(En[b]).tocsc(), permc_spec="MMD_AT_PLUS_A")
+            U[b][:, self.free] = lu.solve(F).T
+        return torch.from_numpy(U).to(E.device)
+
+    def _torch_data(self, device: torch.device) -> tuple[torch.Tensor, ...]:
+        key = str(device)
+        if key not in self._torch_cache:
+            self._torch_cache[key] = (
+                torch.as_tensor(self.K0, device=device),
+                torch.as_tensor(self.grid.element_dofs, device=device),
+                torch.as_tensor(~self.fixed, device=device, dtype=torch.float64),
+                torch.as_tensor(self.forces, device=device),
+            )
+        return self._torch_cache[key]
+
+    def apply(self, moduli: torch.Tensor, U: torch.Tensor) -> torch.Tensor:
+        """``K(E) u`` matrix-free for moduli ``(B, n_elements)`` and displacements ``(B, L, n_dofs)``
+        (float64), the fixed rows and columns removed (zero there)."""
+        K0, edof, free, _ = self._torch_data(U.device)
+        U = U * free
+        Ue = U[:, :, edof]  # (B, L, ne, k)
+        Fe = torch.matmul(Ue, K0) * moduli[:, None, :, None]
+        out = torch.zeros_like(U)
+        out.index_add_(2, edof.reshape(-1), Fe.reshape(*Fe.shape[:2], -1))
+        return out * free
+
+    def _solve_cg(self, E: torch.Tensor) -> torch.Tensor:
+        K0, edof, free, forces = self._torch_data(E.device)
+        B, L, n = E.shape[0], self.n_loads, self.grid.n_dofs
+        diag = torch.zeros(B, n, dtype=torch.float64, device=E.device)
+        diag.index_add_(1, edof.reshape(-1), (E[:, :, None] * torch.diagonal(K0)[None, None, :]).reshape(B, -1))
+        inv = torch.where(free > 0, 1.0 / diag.clamp_min(torch.finfo(torch.float64).tiny), 0.0)[:, None, :]
+        f = (forces * free).expand(B, L, n)
+        x = self._warm.get(("cg", B, str(E.device)))
+        x = torch.zeros_like(f) if x is None else x.clone()
+        r = f - self.apply(E, x)
+        z = inv * r
+        p = z.clone()
+        rz = (r * z).sum(-1, keepdim=True)
+        fnorm = f.norm(dim=-1, keepdim=True).clamp_min(torch.finfo(torch.float64).tiny)
+        for it in range(self.max_iter):
+            Ap = self.apply(E, p)
+            alpha = rz / (p * Ap).sum(-1, keepdim=True).clamp_min(torch.finfo(torch.float64).tiny)
+            x = x + alpha * p
+            r = r - alpha * Ap
+            if it % 10 == 9 and bool(torch.all(r.norm(dim=-1, keepdim=True) <= self.rtol * fnorm)):
+                break
+            z = inv * r
+            rz_new = (r * z).sum(-1, keepdim=True)
+            p = z + (rz_new / rz.clamp_min(torch.finfo(torch.float64).tiny)) * p
+            rz = rz_new
+        else:
+            worst = float((r.norm(dim=-1, keepdim=True) / fnorm).max())
+            raise RuntimeError(f"ElasticitySolver: CG reached {self.max_iter} iterations at relative residual {worst:.2e}")
+        self._warm[("cg", B, str(E.device))] = x
+        return x
+
+    # --- quantities of a solution ---------------------------------------------------------------
+
+    def element_energy(self, U: torch.Tensor) -> torch.Tensor:
+        """``u_e^T K0 u_e`` ``(B, L, n_elements)`` of displacements ``(B, L, n_dofs)``: twice the strain
+        energy of each element at unit modulus."""
+        K0, edof, _, _ = self._torch_data(U.device)
+        Ue = U[:, :, edof]
+        return (torch.matmul(Ue, K0) * Ue).sum(-1)
+
+    def work(self, U: torch.Tensor) -> torch.Tensor:
+        """``f^T u`` ``(B, L)``: the compliance of each shape and load case."""
+        _, _, free, forces = self._torch_data(U.device)
+        return ((forces * free)[None] * U).sum(-1)
