@@ -2,6 +2,7 @@
 
     python benchmarks/structural.py simp        # the half MBB beam, 60 x 20, against the 88-line code
     python benchmarks/structural.py solver      # direct vs CG, batched vs one by one (ratios, interleaved)
+    python benchmarks/structural.py mbb RUN     # a run of a structural problem against SIMP on the same problem
 
 ``simp`` runs :func:`ginn.physics.simp` on the half MBB beam of Sigmund (2001) and Andreassen et al.
 (2011): 60 x 20 unit elements, the left edge on rollers (the symmetry line), the lower right corner
@@ -13,18 +14,26 @@ volume fraction and the seconds.
 ``solver`` times solves of one grey-free solid/void design (void modulus 1e-6) with each method on
 2D and 3D grids, and a batch of 8 shapes solved by CG in one call against the same 8 one by one; the
 configurations take turns block by block and the script prints medians and ratios.
+
+``mbb RUN`` (any structural problem's run, after ``ginn eval RUN``) prints the run's volume
+fractions and compliances from its ``metrics.json`` beside the SIMP reference of its problem
+(:func:`ginn.problems.structural.simp_reference`) and their ratio.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import statistics
 import time
+from pathlib import Path
 
 import numpy as np
 import torch
 
 from ginn.physics import ElasticitySolver, ElementGrid, simp
+from ginn.problems import load_spec
+from ginn.problems.structural import simp_reference
 
 PUBLISHED = {("sensitivity", 2.4): 216.81, ("density", 2.4): 233.71}
 
@@ -99,12 +108,33 @@ def run_solver(blocks: int) -> None:
               f"one by one / batched {statistics.median(one) / statistics.median(many):.2f}")
 
 
+def run_against_simp(run: Path) -> None:
+    metrics = json.loads((run / "metrics.json").read_text())
+    problem = load_spec(run / "problem.yaml").build()
+    t = time.perf_counter()
+    ref = simp_reference(problem)
+    print(f"SIMP reference: volume fraction {ref.solid.mean():.3f}, compliance {ref.compliance:.1f} "
+          f"({ref.result.iterations} iterations, {time.perf_counter() - t:.1f} s)")
+    for k, shape in enumerate(metrics["shapes"]):
+        c = shape.get("compliance")
+        print(f"shape {k}: volume fraction {shape.get('volume_fraction'):.3f}, compliance {c:.1f}, "
+              f"/ SIMP {c / ref.compliance:.3f}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("what", choices=["simp", "solver"])
+    ap.add_argument("what", choices=["simp", "solver", "mbb"])
+    ap.add_argument("run", nargs="?", type=Path, help="mbb: the run directory")
     ap.add_argument("--blocks", type=int, default=3, help="solver: alternating blocks per configuration")
     a = ap.parse_args()
-    run_simp() if a.what == "simp" else run_solver(a.blocks)
+    if a.what == "simp":
+        run_simp()
+    elif a.what == "solver":
+        run_solver(a.blocks)
+    else:
+        if a.run is None:
+            ap.error("mbb needs the run directory")
+        run_against_simp(a.run)
 
 
 if __name__ == "__main__":

@@ -89,8 +89,8 @@ def test_builtin_specs_state_every_derived_setting():
         notes = spec.derived_notes(cfg)
         allowed = {"model.kind", "model.w0_hidden"} | ({"model.w0_first"} if name == "plateau" else set())
         allowed |= {"losses.topology.weight", "topology.grid"}  # act only with topology targets; these state none
-        # act only with a volume bound or a least feature size; these state none
-        allowed |= {"losses.volume.weight", "losses.area.weight", "losses.thickness.weight", "losses.gap.weight", "losses.overhang.weight",
+        # act only with a volume bound, a least feature size or a physics block; these state none
+        allowed |= {"losses.compliance.weight", "losses.volume.weight", "losses.area.weight", "losses.thickness.weight", "losses.gap.weight", "losses.overhang.weight",
                     "losses.fillet.weight", "losses.faces.weight"}
         if name == "plateau":
             allowed.add("latents.draw")  # acts only with latent codes; Plateau trains one shape

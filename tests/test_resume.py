@@ -81,6 +81,10 @@ CASES = {
     "check-driven multipliers, stop when feasible": ("obstacle", "demo", [
         *OBSTACLE, "balancing.method=feasibility", "training.stop_when_feasible=true", "latents.n_shapes=2",
         "training.feasibility_checks=4"]),
+    "structural (compliance, volume offset)": ("mbb", None, ["training.threads=1", "model.hidden=[16,16]",
+                                                             "structural.cells=30"]),
+    "structural, CG warm starts": ("mbb", None, ["training.threads=1", "model.hidden=[16,16]", "structural.cells=30",
+                                                 "structural.method=cg"]),
     "mirror": ("mirror", None, ["training.threads=1", "params.n_samples=64"]),
     "gray-scott": ("gray-scott", "quick", ["training.threads=1", "model.hidden=[16,8]", "latents.n_shapes=2",
                                            "params.grid=16", "params.fine_grid=0", "params.step_reuse=4",

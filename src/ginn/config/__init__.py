@@ -39,13 +39,13 @@ from .run import (
     parse_task_params,
     with_overrides,
 )
-from .shape import ConnectednessConfig, DiversityConfig, LossesConfig, SamplingConfig, ShapeParams, TopologyConfig
+from .shape import ConnectednessConfig, DiversityConfig, LossesConfig, SamplingConfig, ShapeParams, StructuralConfig, TopologyConfig
 
 __all__ = [
     "DTYPES", "HELDOUT_LATENTS", "HELDOUT_PER_SHAPE", "MIN_STEP_CODES", "RESOLUTION", "STRAIN_CLIP", "LossTerm", "Strict",
     "default_resolution",
     "ModelConfig", "LatentConfig", "BalancingConfig", "TrainingConfig", "OutputConfig",
-    "LossesConfig", "SamplingConfig", "DiversityConfig", "ConnectednessConfig", "TopologyConfig", "ShapeParams",
+    "LossesConfig", "SamplingConfig", "DiversityConfig", "ConnectednessConfig", "TopologyConfig", "StructuralConfig", "ShapeParams",
     "MirrorParams", "GSParams", "GrayScottLosses", "GrayScottParams",
     "TASK_PARAMS", "TASK_KINDS", "TaskParams", "RunConfig", "RETIRED",
     "deep_merge", "flattened", "nested", "parse_set", "one_line", "drop_retired", "build_config", "with_overrides",

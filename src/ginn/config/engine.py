@@ -80,7 +80,8 @@ class BalancingConfig(Strict):
         "constraint terms held at targets derived from the problem's tolerances by multipliers adapted from their "
         "running violation, the weights only starting them; "
         "augmented-lagrangian: constraints driven to zero with multipliers")
-    objectives: list[str] = Field(default_factory=lambda: ["eikonal", "mean_curvature", "strain", "diversity", "connectedness"],
+    objectives: list[str] = Field(default_factory=lambda: ["eikonal", "mean_curvature", "strain", "diversity", "connectedness",
+                                                           "compliance"],
                                   description="weighted and augmented-lagrangian: the terms minimised as objectives, the rest are "
                                   "constraints (adaptive: the constraints are the terms the task derives targets for)")
     mu: float = Field(1.0, gt=0, description="initial penalty parameter")

@@ -15,7 +15,7 @@ from .base import DTYPES, Strict
 from .engine import BalancingConfig, LatentConfig, ModelConfig, OutputConfig, TrainingConfig
 from .gray_scott import GrayScottParams
 from .mirror import MirrorParams
-from .shape import ConnectednessConfig, DiversityConfig, LossesConfig, SamplingConfig, ShapeParams, TopologyConfig
+from .shape import ConnectednessConfig, DiversityConfig, LossesConfig, SamplingConfig, ShapeParams, StructuralConfig, TopologyConfig
 
 __all__ = ["TASK_PARAMS", "TASK_KINDS", "TaskParams", "RunConfig", "deep_merge", "flattened", "nested", "parse_set",
            "one_line", "RETIRED", "drop_retired", "build_config", "with_overrides", "parse_task_params", "config_to_dict"]
@@ -72,6 +72,7 @@ class RunConfig(Strict):
     diversity: DiversityConfig = DiversityConfig()
     connectedness: ConnectednessConfig = ConnectednessConfig()
     topology: TopologyConfig = TopologyConfig()
+    structural: StructuralConfig = StructuralConfig()
     balancing: BalancingConfig = BalancingConfig()
     training: TrainingConfig = TrainingConfig()
     params: TaskParams = Field(ShapeParams(), description="task-specific parameters; `kind` selects the group")

@@ -13,7 +13,7 @@ from pydantic import Field
 
 from .base import STRAIN_CLIP, LossTerm, Strict
 
-__all__ = ["LossesConfig", "SamplingConfig", "DiversityConfig", "ConnectednessConfig", "TopologyConfig", "ShapeParams"]
+__all__ = ["LossesConfig", "SamplingConfig", "DiversityConfig", "ConnectednessConfig", "TopologyConfig", "StructuralConfig", "ShapeParams"]
 
 
 class LossesConfig(Strict):
@@ -36,6 +36,7 @@ class LossesConfig(Strict):
     overhang: LossTerm = LossTerm()
     fillet: LossTerm = LossTerm()
     faces: LossTerm = LossTerm()
+    compliance: LossTerm = LossTerm()
     containment_power: Literal[1, 2] = Field(
         2,
         description="exponent of the design-region and obstacle penalties: 2 is the paper's mean of "
@@ -98,6 +99,19 @@ class TopologyConfig(Strict):
     grid: int = Field(64, ge=8, description="persistent-homology grid nodes along the longest axis of the domain; "
                       "the margin of the loss is one cell of it")
     every: int = Field(5, ge=1, description="recompute the persistence diagrams every K steps (the same cells between)")
+
+
+class StructuralConfig(Strict):
+    """The finite-element analysis of problems with a ``physics`` block (docs/structural.md)."""
+
+    cells: int = Field(0, ge=0, description="elements along the domain's longest side (0: 90 in 2D, 36 in 3D, or more "
+                       "where the smallest interface would span fewer than 4 elements)")
+    penalty: float = Field(3.0, ge=1.0, description="the modulus of an element is void + (1 - void) rho^penalty, rho the "
+                           "smoothed step of the field at its centre (SIMP's penalty: grey elements are weak)")
+    void: float = Field(1e-6, gt=0, lt=1, description="the modulus of void relative to the solid's (the ersatz material)")
+    method: Literal["auto", "direct", "cg"] = Field(
+        "auto", description="the linear solver: direct (sparse LU), cg (batched matrix-free conjugate gradients), auto "
+        "(direct for 2D on the CPU, cg otherwise)")
 
 
 class ShapeParams(Strict):

@@ -11,7 +11,9 @@ constraints need is computed when one first asks, once per step:
   (no extra evaluation) and then by ``sampling.projection_steps`` further steps, which also check
   convergence (``_boundary_converged``, the share that did, is logged);
 * :meth:`Batch.surface_hessians`: gradients and Hessians at the converged surface samples (one
-  pass; the curvature and strain terms share it).
+  pass; the curvature and strain terms share it);
+* :meth:`Batch.field_at`: values at fixed points every shape shares (the element centres of a
+  structural problem, which its compliance and volume terms share).
 """
 
 from __future__ import annotations
@@ -74,6 +76,7 @@ class Batch:
         self.diagnostics: dict[str, Tensor] = {}
         self._surface: Surface | None = None
         self._hessians: tuple[FieldValues, Tensor] | None = None
+        self._at: dict[str, Tensor] = {}
 
     @property
     def S(self) -> int:
@@ -123,6 +126,15 @@ class Batch:
         if not grad:
             return f, {}
         return f, dict(zip(names, torch.split(v.grad.reshape(S, N, self.d), sizes, dim=1)))
+
+    def field_at(self, key: str, x: Tensor) -> Tensor:
+        """The field of every shape at the points ``x (n, d)`` that all shapes share, ``(S, n)``,
+        differentiable w.r.t. the parameters; evaluated at the first call with ``key`` in a step."""
+        if key not in self._at:
+            Xf, Zf = (x, None) if self.Z is None else fields.broadcast_latents(x, self.Z)
+            v = fields.evaluate(self.model, Xf, Zf, grad=False, create_graph=True)
+            self._at[key] = v.f.reshape(self.S, -1)
+        return self._at[key]
 
     def latents_of(self, x: Tensor) -> Tensor | None:
         """The latent code of every point of per-shape points ``x (S, m, d)``, flattened

@@ -5,6 +5,7 @@ from __future__ import annotations
 from ..problems.problem import Problem
 from .area import Area, AreaVerdict
 from .base import Constraint, Setting
+from .compliance import Compliance, ComplianceReport
 from .connectedness import Connected, Connectedness
 from .containment import DesignRegion, Obstacle, VolumeOutside
 from .curvature import MeanCurvature, Strain
@@ -70,6 +71,8 @@ def shape_constraints(setting: Setting) -> list[Constraint]:
     if p.topology.targets:
         out.append(HoleTargets(setting))
     out += [term(setting) for field, term, _ in TOLERANCE_TERMS if _stated(p, field)]
+    if p.physics is not None:
+        out.append(Compliance(setting))
     return out
 
 
@@ -88,6 +91,8 @@ def problem_verdicts(problem: Problem) -> list[Verdict]:
     if problem.symmetry is not None:
         out.append(SymmetryVerdict(problem))
     out += [verdict(problem) for field, _, verdict in TOLERANCE_TERMS if _stated(problem, field)]
+    if problem.physics is not None:
+        out.append(ComplianceReport(problem))
     if problem.tolerances.diversity is not None:
         out.append(LeastDiversity(problem))
     return out

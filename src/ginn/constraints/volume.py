@@ -15,6 +15,13 @@ whose estimate lies beyond the bound, so the forces that widen a shape (diversit
 interfaces) would hold it where about half the estimates do, over the bound; moved by ``s``, it
 holds the shapes inside. An exact penalty (power 1), like the containment terms.
 
+A structural problem (``physics:``) estimates the fractions on its element grid instead, from the
+field at the element centres that its compliance term evaluates (:mod:`ginn.constraints.compliance`):
+the share of the centres in E where ``f <= 0``, with the gradient of the same smoothed step as the
+element densities (width half an element). The estimate is the same at every step, so it needs no
+margin, and the volume and the stiffness see one material: with the sampled estimate and its
+margin the half MBB beam (``mbb``) ended at a volume fraction of 0.47 under a bound of 0.5.
+
 Verdict: ``volume_fraction`` of ``ginn eval`` (:func:`ginn.eval.metrics.volume_fraction`, grid
 volumes) within the bounds.
 """
@@ -26,9 +33,12 @@ import math
 import torch
 from torch import Tensor
 
+from ..problems.derived import smallest_feature
 from ..problems.problem import Problem
+from ..problems.structural import structural_grid, void_elements
 from .base import Constraint, Setting
 from .batch import Batch
+from .compliance import ELEMENTS
 from .samples import DOMAIN
 from .verdict import IntervalVerdict
 
@@ -62,6 +72,13 @@ class VolumeFraction(Constraint):
         super().__init__(setting)
         self._verdict = VolumeFractionVerdict(setting.problem)
         self.width = step_width(setting)
+        self.centres: Tensor | None = None
+        p = setting.problem
+        if p.physics is not None:  # the element grid of the compliance term
+            grid = structural_grid(p, setting.cfg.structural.cells, smallest_feature(p))
+            self.centres = torch.as_tensor(grid.centres, dtype=setting.dtype, device=setting.device)
+            self.in_design = ~torch.as_tensor(void_elements(p, grid), device=setting.device)
+            self.element_width = 0.5 * float(grid.h.min())
 
     @property
     def verdict(self) -> VolumeFractionVerdict:
@@ -70,6 +87,12 @@ class VolumeFraction(Constraint):
     def fractions(self, batch: Batch) -> tuple[Tensor, Tensor]:
         """The estimated volume fraction of each shape (the share of its samples, with the
         smoothed count's gradient) and its standard error (detached), ``(S,)`` each."""
+        if self.centres is not None:
+            f = batch.field_at(ELEMENTS, self.centres)[:, self.in_design]
+            smooth = torch.sigmoid(-f / self.element_width).mean(dim=1)
+            with torch.no_grad():
+                share = (f <= 0).to(f.dtype).mean(dim=1)
+            return share + (smooth - smooth.detach()), torch.zeros_like(share)
         f = batch.f["domain"]  # (S, n)
         x = batch.x["domain"]  # (S, n, d)
         member = self.setting.membership
@@ -86,7 +109,7 @@ class VolumeFraction(Constraint):
 
     def loss(self, batch: Batch) -> Tensor | None:
         b = self.setting.problem.tolerances.volume_fraction
-        if b is None or "domain" not in batch.f:
+        if b is None or (self.centres is None and "domain" not in batch.f):
             return None
         v, err = self.fractions(batch)
         zero = torch.zeros_like(v)

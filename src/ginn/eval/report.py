@@ -32,12 +32,15 @@ METRIC_LABELS = {
     "sharp_share": "↓ share of the boundary sharper than the fillet radius",
     "curvature_max": "largest principal curvature |κ|",
     "face_deviation": "↓ flat faces: largest normal angle / allowed",
+    "compliance": "↓ compliance (weighted over the load cases)",
+    "max_displacement": "largest displacement",
     "diversity_mean": "↑ δ_mean(S)",
 }
 
 _ROWS = tuple(k for k in METRIC_LABELS if k != "diversity_mean")
 #: rows shown only where a run measures them (the verdicts of some tolerances measure them)
-_OPTIONAL = ("boundary_area", "thickness_removed", "gap_filled", "overhang_share", "sharp_share", "curvature_max", "face_deviation")
+_OPTIONAL = ("boundary_area", "thickness_removed", "gap_filled", "overhang_share", "sharp_share", "curvature_max", "face_deviation",
+             "compliance", "max_displacement")
 
 
 def _fmt(v) -> str:

@@ -182,6 +182,15 @@ class ElasticitySolver:
         self._warm[("cg", B, str(E.device))] = x
         return x
 
+    def warm_state(self) -> dict[str, torch.Tensor]:
+        """CG's warm starts (``{batch size: displacements}``), for a checkpoint: a resumed run then
+        solves from the same start and repeats the uninterrupted one bit for bit."""
+        return {str(key[1]): x.detach().cpu() for key, x in self._warm.items() if key[0] == "cg"}
+
+    def load_warm_state(self, state: dict[str, torch.Tensor], device: torch.device) -> None:
+        """Restore :meth:`warm_state` onto ``device``."""
+        self._warm = {("cg", int(b), str(device)): x.to(device) for b, x in state.items()}
+
     # --- quantities of a solution ---------------------------------------------------------------
 
     def element_energy(self, U: torch.Tensor) -> torch.Tensor:

@@ -155,6 +155,8 @@ RULES: tuple[Rule, ...] = (
          "`1 - n . t` of unit normals: no scale, as the prescribed normals (only with `tolerances.faces`)"),
     Rule("losses.fillet.weight", "1", lambda g: 1.0,
          "`relu(kappa r - 1)`: no scale (only with `tolerances.min_radius`)"),
+    Rule("losses.compliance.weight", "1", lambda g: 1.0,
+         "the weighted compliance relative to that of E all solid: no scale (only with a `physics` block)"),
     Rule("losses.containment_power", "1", lambda g: 1,
          "the exact penalty cut the obstacle's remaining volume outside E 3.5x at the same CD1; 2 is the paper's "
          "(`docs/obstacle.md`)"),

@@ -129,6 +129,53 @@ class Tolerances:
 
 
 @dataclass(frozen=True)
+class Support:
+    """Degrees of freedom held at zero: the components ``axes`` (0: x, 1: y, 2: z) of the finite-element
+    nodes within half an element of ``where`` (an interface or a region)."""
+
+    where: Interface | Region
+    axes: tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class Load:
+    """A force ``(d,)`` (total, in the problem's force unit) shared equally by the finite-element nodes
+    within half an element of ``where`` (an interface or a region)."""
+
+    where: Interface | Region
+    force: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class LoadCase:
+    """Loads that act together; the objective weighs each case's compliance by ``weight``."""
+
+    loads: tuple[Load, ...]
+    weight: float = 1.0
+
+
+@dataclass(frozen=True)
+class Physics:
+    """Linear elasticity of the shape (``docs/structural.md``): an isotropic material, supports and
+    load cases; the objective is the weighted sum of the load cases' compliances.
+
+    Attributes:
+        youngs_modulus: in the problem's force per area (2D: per length, unit thickness).
+        poisson_ratio: in (-1, 0.5).
+        supports: the held degrees of freedom.
+        load_cases: the load cases.
+        labels: ``(supports, load cases)``: the spec field of each support and each load case's
+            loads, for messages (``physics.supports[0]``).
+    """
+
+    youngs_modulus: float
+    poisson_ratio: float
+    supports: tuple[Support, ...]
+    load_cases: tuple[LoadCase, ...]
+    labels: tuple[tuple[str, ...], tuple[tuple[str, ...], ...]] = ((), ())
+
+
+@dataclass(frozen=True)
 class Topology:
     """The Betti numbers every shape must have inside E (None: free), counted as
     :func:`ginn.topology.betti_numbers` counts them (holes round an obstacle count).
@@ -166,6 +213,7 @@ class Problem:
             the field is symmetric by construction), or None.
         reference: an independent reference solution evaluation compares against
             (``"minimal-surface"``), or None.
+        physics: the structural problem (:class:`Physics`), or None (geometry only).
     """
 
     name: str
@@ -180,6 +228,7 @@ class Problem:
     symmetry: Symmetry | None = None
     description: str = ""
     reference: str | None = None
+    physics: Physics | None = None
     extra: dict = field(default_factory=dict)
 
     @property

@@ -28,6 +28,7 @@ from .derived import derived_defaults, half_longest_side
 from .forced import forced_holes, forced_tunnels
 from .interfaces import INTERFACE_TYPES, InterfaceSpec
 from .nodes import Dir3, Direction, Finite, Fraction, Node, NonNegative, Point, Positive, check_lo_hi, spec_dim
+from .physics_spec import PhysicsSpec
 from .problem import Bounds, CurvatureBound, FeatureSize, FlatFace, Overhang, Problem, Tolerances, Topology
 from .regions import REGION_TYPES, RegionSpec
 from .symmetric import check_symmetric
@@ -296,6 +297,9 @@ class ProblemSpec(BaseModel):
     tolerances: TolerancesSpec = Field(default_factory=TolerancesSpec)
     topology: TopologySpec = Field(default_factory=TopologySpec)
     symmetry: SymmetrySpec = Field(default_factory=SymmetrySpec)
+    physics: PhysicsSpec | None = Field(
+        None, description="a structural problem: material, supports and load cases; the weighted compliance is "
+        "minimised (docs/structural.md)")
     defaults: dict[str, Any] = Field(default_factory=dict)
     presets: dict[str, dict[str, Any]] = Field(default_factory=dict)
     _base_dir: Path | None = PrivateAttr(default=None)
@@ -468,6 +472,7 @@ class ProblemSpec(BaseModel):
             symmetry=symmetry,
             description=self.description,
             reference=self.reference,
+            physics=None if self.physics is None else self.physics.build(faces, dim, base),
             extra={"kind": self.kind, "source": self._source},
         )
 

@@ -1,0 +1,184 @@
+"""The structural objective: the weighted compliance of the problem's load cases
+(``physics:`` in the spec; ``docs/structural.md``).
+
+Every step evaluates each shape's field at the centres of the element grid
+(:func:`ginn.problems.structural.structural_grid`), turns it into element densities by a smoothed
+step whose width follows the element size, ``rho = sigmoid(-f / w)`` with ``w`` half the smallest
+element side (a field that is a distance goes from 0.12 to 0.88 across one element), and into
+moduli ``E (void + (1 - void) rho^p)`` (``structural.penalty`` ``p``, SIMP's: grey elements carry
+little), the elements outside E or in an obstacle held void. All shapes of the step are solved in
+one call (:func:`ginn.physics.compliance`), which hands autograd the adjoint gradient.
+
+Under a volume bound (``tolerances.volume_fraction.max``) the compliance is that of the shape
+moved onto the bound: the densities are ``sigmoid(-(f - t) / w)`` with the offset ``t <= 0`` at
+which their sum in E equals the bound's share (found by bisection; 0 where the shape is within the
+bound), and ``t`` carries its implicit gradient ``dt / df_e = r_e / sum r`` (``r = rho (1 - rho)``),
+as an optimality-criteria step holds SIMP's volume. So the compliance rewards moving material, not
+adding it; the volume term alone sets how much there is. Without it the compliance's pull on the
+volume beat the volume term: the half MBB beam (``mbb``) ended at a volume fraction of 0.578
+under a bound of 0.5.
+
+Loss: ``sum_l w_l c_l / c_ref`` averaged over the shapes, ``c_ref`` the weighted compliance of E
+all solid, so that the term has no unit and is about 2 to 5 at a volume fraction of a half. An
+objective; the volume bound of the spec is its own term.
+
+Report (:class:`ComplianceReport`, among the verdicts so that ``ginn eval`` and the checks during
+training measure it, but never violated): each shape thresholded (``f <= 0`` solid, the rest the
+void's modulus 1e-6) at the centres of the default element grid refined twice along each axis,
+and solved there: ``compliance`` (weighted), ``compliance_cases`` (per load case) and
+``max_displacement`` (the largest nodal displacement over the load cases).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from .. import fields
+from ..physics import compliance
+from ..problems.derived import smallest_feature
+from ..problems.problem import Problem
+from ..problems.structural import structural_grid, structural_solver, void_elements
+from .base import Constraint, Setting, Stage
+from .batch import Batch
+from .verdict import Verdict, Violation
+
+__all__ = ["Compliance", "ComplianceReport", "REPORT_VOID", "ELEMENTS"]
+
+#: the key of the element centres' field values in a step (:meth:`ginn.constraints.batch.Batch.field_at`)
+ELEMENTS = "elements"
+
+#: the void's modulus (relative to the solid's) in the report's solves
+REPORT_VOID = 1e-6
+
+
+class ComplianceReport(Verdict):
+    """The compliance of the thresholded shape on the fine grid (module docstring); never violated."""
+
+    name = "compliance"
+
+    def __init__(self, problem: Problem):
+        super().__init__(problem)
+        self.metrics = ("compliance",)
+        self._fine: tuple | None = None
+
+    def fine(self) -> tuple:
+        """``(grid, solver, weights, void)`` of the report's grid, built at the first use."""
+        if self._fine is None:
+            p = self.problem
+            grid = structural_grid(p, 0, smallest_feature(p)).refined(2)
+            solver, w = structural_solver(p, grid)
+            self._fine = (grid, solver, w, void_elements(p, grid))
+        return self._fine
+
+    def solid(self, field, z) -> np.ndarray:
+        """``(n_elements,)`` bool: the fine grid's elements whose centre the shape holds (``f <= 0``) in E."""
+        grid, _, _, void = self.fine()
+        p = next(iter(field.parameters()), None) if isinstance(field, torch.nn.Module) else None
+        dtype, device = (p.dtype, p.device) if p is not None else (torch.float64, torch.device("cpu"))
+        x = torch.as_tensor(grid.centres, dtype=dtype, device=device)
+        out = []
+        with torch.no_grad():
+            for s in range(0, x.shape[0], 65536):
+                xc = x[s: s + 65536]
+                zc = None if z is None else torch.as_tensor(z, dtype=dtype, device=device).reshape(1, -1).expand(xc.shape[0], -1)
+                out.append(fields.evaluate(field, xc, zc, grad=False, create_graph=False).f.reshape(-1).cpu())
+        return (torch.cat(out).numpy() <= 0) & ~void
+
+    def measure(self, shape, context, field, z) -> dict[str, Any]:
+        grid, solver, w, _ = self.fine()
+        solid = self.solid(field, z)
+        E = float(self.problem.physics.youngs_modulus)
+        moduli = torch.as_tensor(E * np.where(solid, 1.0, REPORT_VOID))
+        U = solver.solve(moduli)
+        cases = solver.work(U)[0].numpy()
+        disp = U[0].reshape(U.shape[1], -1, grid.dim).norm(dim=-1).max()
+        return {"compliance": float(w @ cases), "compliance_cases": [float(c) for c in cases],
+                "max_displacement": float(disp)}
+
+    def violation(self, metrics: Mapping) -> Violation | None:
+        return None
+
+    def ratio(self, metrics: Mapping) -> float | None:
+        return None
+
+
+class Compliance(Constraint):
+    """The weighted compliance of every shape of the step (see the module docstring)."""
+
+    name = "compliance"
+    stage = Stage.FIELD
+
+    def __init__(self, setting: Setting):
+        super().__init__(setting)
+        p, cfg = setting.problem, setting.cfg.structural
+        self.grid = structural_grid(p, cfg.cells, smallest_feature(p))
+        self.solver, w = structural_solver(p, self.grid, cfg.method)
+        dev = setting.device
+        self.weights = torch.as_tensor(w, dtype=torch.float64, device=dev)
+        self.void = torch.as_tensor(void_elements(p, self.grid), device=dev)
+        self.centres = torch.as_tensor(self.grid.centres, dtype=setting.dtype, device=dev)
+        self.width = 0.5 * float(self.grid.h.min())
+        self.penalty = float(cfg.penalty)
+        self.void_modulus = float(cfg.void)
+        self.modulus = float(p.physics.youngs_modulus)
+        solid = torch.where(self.void, 0.0, 1.0).to(torch.float64)[None]
+        c, _ = compliance(self.moduli(solid), self.solver)
+        self.reference = float((c * self.weights).sum())
+
+    def density(self, f: Tensor) -> Tensor:
+        """Element densities ``(S, n_elements)`` of field values at the centres ``(S, n_elements)``."""
+        rho = torch.sigmoid(-f / self.width)
+        return torch.where(self.void, torch.zeros_like(rho), rho)
+
+    def offset(self, f: Tensor) -> Tensor:
+        """``t`` ``(S, 1)``: the offset that moves each shape onto the volume bound (module docstring),
+        with its implicit gradient; zeros without a bound."""
+        b = self.setting.problem.tolerances.volume_fraction
+        S = f.shape[0]
+        if b is None or b.max is None:
+            return torch.zeros(S, 1, dtype=f.dtype, device=f.device)
+        inE = ~self.void
+        target = float(b.max) * float(inE.sum())
+        with torch.no_grad():
+            fd = f.detach()
+
+            def mass(t: Tensor) -> Tensor:
+                return torch.where(inE, torch.sigmoid(-(fd - t) / self.width), 0.0).sum(dim=1, keepdim=True)
+
+            lo = fd.min(dim=1, keepdim=True).values - 40 * self.width
+            hi = torch.zeros(S, 1, dtype=f.dtype, device=f.device)
+            over = mass(hi) > target  # only shapes over the bound move
+            for _ in range(60):
+                mid = 0.5 * (lo + hi)
+                big = mass(mid) > target
+                hi = torch.where(big, mid, hi)
+                lo = torch.where(big, lo, mid)
+            t0 = torch.where(over, 0.5 * (lo + hi), torch.zeros_like(hi))
+            rho = torch.where(inE, torch.sigmoid(-(fd - t0) / self.width), 0.0)
+            r = rho * (1 - rho)
+            a = torch.where(over, r / r.sum(dim=1, keepdim=True).clamp_min(1e-30), torch.zeros_like(r))
+        return t0 + (a * (f - fd)).sum(dim=1, keepdim=True)
+
+    def moduli(self, rho: Tensor) -> Tensor:
+        """Element moduli (float64) of densities ``rho``."""
+        rho = rho.to(torch.float64)
+        return self.modulus * (self.void_modulus + (1.0 - self.void_modulus) * rho**self.penalty)
+
+    def state_dict(self) -> dict:
+        """The CG solver's warm starts (empty for the direct solver)."""
+        return {"warm": self.solver.warm_state()}
+
+    def load_state_dict(self, state: dict) -> None:
+        self.solver.load_warm_state(state.get("warm", {}), self.setting.device)
+
+    def loss(self, batch: Batch) -> Tensor:
+        f = batch.field_at(ELEMENTS, self.centres)
+        c, _ = compliance(self.moduli(self.density(f - self.offset(f))), self.solver)  # (S, L)
+        weighted = (c * self.weights).sum(-1)
+        batch.diagnostics["_compliance"] = weighted.detach().mean()
+        return (weighted / self.reference).mean().to(f.dtype)

@@ -1,0 +1,147 @@
+"""A problem's structural analysis on an element grid: its supports and load cases turned into
+the held degrees of freedom and nodal forces of an :class:`~ginn.physics.ElasticitySolver`.
+
+A support or load acts on the grid nodes within half an element (half the longest element side)
+of its interface or region; a load's force is shared equally by its nodes. The elements whose
+centre lies outside the design region or inside an obstacle are void.
+
+:func:`simp_reference` runs the SIMP optimiser (:func:`ginn.physics.simp`) on the same grid,
+the baseline the structural results are measured against.
+
+Public names: :func:`structural_solver`, :func:`structural_grid`, :func:`void_elements`,
+:func:`simp_reference`, :func:`upsample`, :class:`Reference`, :data:`CELLS`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from ..errors import SpecError
+from ..geometry.base import Interface, Region
+from ..physics import ElasticitySolver, ElementGrid, SimpResult, simp
+from .derived import smallest_feature
+from .problem import Problem
+
+__all__ = ["structural_solver", "structural_grid", "void_elements", "simp_reference", "upsample", "Reference", "CELLS"]
+
+#: elements along the domain's longest side, per dimension, unless the smallest interface needs more
+CELLS = {2: 90, 3: 36}
+
+
+def structural_grid(problem: Problem, cells: int = 0, smallest: float | None = None) -> ElementGrid:
+    """The element grid of ``problem``: ``cells`` elements along the domain's longest side (0: the
+    default, :data:`CELLS` of the dimension, or more where the smallest interface ``smallest`` (a
+    length) would span fewer than 4 elements), elements as close to squares/cubes as the box allows."""
+    d = problem.domain
+    longest = max(h - lo for lo, h in zip(d.lo, d.hi))
+    if cells <= 0:
+        cells = CELLS[problem.dim]
+        if smallest is not None and smallest > 0:
+            cells = max(cells, math.ceil(4.0 * longest / (2.0 * smallest)))
+    return ElementGrid.over(d.lo, d.hi, cells)
+
+
+def _near(where: Interface | Region, x: torch.Tensor, reach: float) -> np.ndarray:
+    """``(n,)`` bool: the points ``x`` within ``reach`` of an interface or inside a region grown by ``reach``."""
+    with torch.no_grad():
+        d = where.distance(x) if isinstance(where, Interface) else where.sdf(x)
+    return (d <= reach).cpu().numpy()
+
+
+def void_elements(problem: Problem, grid: ElementGrid) -> np.ndarray:
+    """``(n_elements,)`` bool: elements whose centre is outside E or inside an obstacle."""
+    c = torch.as_tensor(grid.centres, dtype=torch.float64)
+    void = np.zeros(grid.n_elements, bool)
+    with torch.no_grad():
+        if problem.design_region is not None:
+            void |= ~problem.design_region.contains(c).cpu().numpy()
+        for o in problem.obstacles:
+            void |= o.contains(c).cpu().numpy()
+    return void
+
+
+def structural_solver(problem: Problem, grid: ElementGrid, method: str = "auto") -> tuple[ElasticitySolver, np.ndarray]:
+    """The solver of ``problem``'s supports and load cases on ``grid`` (its material's Poisson ratio)
+    and the load cases' weights ``(L,)``.
+
+    Raises:
+        SpecError: a support or a load that reaches no grid node (naming its spec field).
+    """
+    ph = problem.physics
+    if ph is None:
+        raise SpecError(f"problem {problem.name}: no physics block")
+    x = torch.as_tensor(grid.nodes, dtype=torch.float64)
+    reach = 0.5 * float(grid.h.max())
+    d = grid.dim
+    fixed = np.zeros((grid.n_nodes, d), bool)
+    labels, case_labels = ph.labels
+    for k, s in enumerate(ph.supports):
+        near = _near(s.where, x, reach)
+        if not near.any():
+            raise SpecError(f"spec field '{labels[k] if labels else 'physics.supports'}': reaches no node of the "
+                            f"{'x'.join(map(str, grid.shape))} element grid")
+        for a in s.axes:
+            fixed[near, a] = True
+    forces = np.zeros((len(ph.load_cases), grid.n_nodes, d))
+    for c, case in enumerate(ph.load_cases):
+        for j, load in enumerate(case.loads):
+            near = _near(load.where, x, reach)
+            if not near.any():
+                label = case_labels[c][j] if case_labels else "physics.loads"
+                raise SpecError(f"spec field '{label}': reaches no node of the {'x'.join(map(str, grid.shape))} element grid")
+            forces[c, near] += np.asarray(load.force) / near.sum()
+    solver = ElasticitySolver(grid, ph.poisson_ratio, fixed.reshape(-1), forces.reshape(len(ph.load_cases), -1),
+                              method=method)
+    return solver, np.array([case.weight for case in ph.load_cases])
+
+
+def upsample(values: np.ndarray, shape: tuple[int, ...], factor: int = 2) -> np.ndarray:
+    """Per-element ``values`` ``(n_elements,)`` of a grid of ``shape`` on the grid refined ``factor``
+    times along each axis (each element's value to its ``factor^dim`` children), in C order."""
+    v = np.asarray(values).reshape(shape)
+    for axis in range(len(shape)):
+        v = np.repeat(v, factor, axis=axis)
+    return v.reshape(-1)
+
+
+@dataclass(frozen=True)
+class Reference:
+    """The SIMP baseline of a structural problem.
+
+    Attributes:
+        result: the SIMP run on the problem's default element grid.
+        solid: ``(n_elements,)`` bool, its densest elements up to the volume bound (the design
+            thresholded at the bound's volume).
+        compliance: the weighted compliance of ``solid`` re-solved on the grid refined twice (void
+            modulus 1e-6), as the shapes' report measures them.
+    """
+
+    result: SimpResult
+    solid: np.ndarray
+    compliance: float
+
+
+def simp_reference(problem: Problem, *, filter_radius: float = 1.5, penalty: float = 3.0, void: float = 1e-6) -> Reference:
+    """SIMP (density filter of ``filter_radius`` elements) on ``problem``'s default grid at its volume
+    bound (``tolerances.volume_fraction.max``), the elements outside E held void, thresholded at the
+    bound's volume and re-solved on the grid refined twice."""
+    b = problem.tolerances.volume_fraction
+    if b is None or b.max is None:
+        raise SpecError(f"problem {problem.name}: the SIMP reference needs tolerances.volume_fraction.max")
+    grid = structural_grid(problem, 0, smallest_feature(problem))
+    solver, w = structural_solver(problem, grid)
+    held = void_elements(problem, grid)
+    res = simp(solver, float(b.max), penalty=penalty, filter_radius=filter_radius, weights=w, passive_void=held)
+    n_solid = int(round(float(b.max) * (~held).sum()))
+    solid = np.zeros(grid.n_elements, bool)
+    solid[np.argsort(-np.where(held, -1.0, res.density), kind="stable")[:n_solid]] = True
+    fine = grid.refined(2)
+    fsolver, _ = structural_solver(problem, fine)
+    E = float(problem.physics.youngs_modulus)
+    moduli = torch.as_tensor(E * np.where(upsample(solid, grid.shape), 1.0, void))
+    c = float(w @ fsolver.work(fsolver.solve(moduli))[0].numpy())
+    return Reference(res, solid, c)

@@ -1,0 +1,132 @@
+"""Structural problems (``physics:`` in a spec): the spec's refusals, the supports and loads on the
+element grid, the volume-bound offset and its implicit gradient, the compliance report against a
+bar's closed form, and a short training whose compliance falls."""
+
+import numpy as np
+import pytest
+import torch
+import yaml
+
+from ginn import runs
+from ginn.cli import main
+from ginn.constraints.base import Setting
+from ginn.constraints.compliance import Compliance, ComplianceReport
+from ginn.errors import SpecError
+from ginn.problems import get_spec, validate_spec
+from ginn.problems.structural import simp_reference, structural_grid, structural_solver, upsample
+
+BAR = {
+    "name": "bar",
+    "geometry": {"dim": 2, "domain": {"lo": [0, 0], "hi": [4, 1]},
+                 "interfaces": [{"type": "segment", "a": [0, 0], "b": [0, 1]}, {"type": "segment", "a": [4, 0], "b": [4, 1]}]},
+    "tolerances": {"volume_fraction": {"max": 0.5}},
+    "physics": {"material": {"youngs_modulus": 2.0, "poisson_ratio": 0.3},
+                "supports": [{"interface": 0, "fix": ["x"]},
+                             {"region": {"type": "rectangle", "lo": [-1, -1], "hi": [0.01, 0.01]}, "fix": ["y"]}],
+                "loads": [{"interface": 1, "force": [1.0, 0.0]}]},
+}
+
+
+def _spec(**physics):
+    data = {**BAR, "physics": {**BAR["physics"], **physics}}
+    return validate_spec(data)
+
+
+@pytest.mark.parametrize("change,field", [
+    ({"supports": []}, "physics.supports"),
+    ({"material": {"youngs_modulus": -1.0}}, "physics.material.youngs_modulus"),
+    ({"material": {"poisson_ratio": 0.5}}, "physics.material.poisson_ratio"),
+    ({"material": {"poisson_ratio": -1.0}}, "physics.material.poisson_ratio"),
+    ({"loads": [{"interface": 1, "force": [1.0]}]}, "physics.loads[0].force"),
+    ({"loads": None}, "physics"),
+])
+def test_bad_physics_refused_in_one_line(change, field):
+    with pytest.raises(SpecError) as e:
+        _spec(**change)
+    assert f"spec field '{field}" in str(e.value) and "\n" not in str(e.value)
+
+
+@pytest.mark.parametrize("change,text", [
+    ({"loads": [{"interface": 5, "force": [1.0, 0.0]}]}, "'physics.loads[0].interface': no interface 5"),
+    ({"loads": [{"region": {"type": "disk", "center": [9, 9], "radius": 0.1}, "force": [1.0, 0.0]}]},
+     "'physics.loads[0]': reaches no node"),
+    ({"supports": [{"region": {"type": "disk", "center": [9, 9], "radius": 0.1}}]}, "'physics.supports[0]': reaches no node"),
+])
+def test_a_load_or_support_on_nothing_exits_2(change, text, tmp_path, capsys):
+    path = tmp_path / "bad.yaml"
+    path.write_text(yaml.safe_dump({**BAR, "physics": {**BAR["physics"], **change}}))
+    try:
+        code = main(["train", str(path), "--iterations", "1", "--out", str(tmp_path / "run"), "--quiet"])
+    except SystemExit as e:
+        code = e.code
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and text in err and len(err.splitlines()) == 1
+
+
+def test_supports_and_loads_on_the_grid():
+    p = _spec().build()
+    grid = structural_grid(p, 40)
+    solver, w = structural_solver(p, grid)
+    assert grid.shape == (40, 10) and w.tolist() == [1.0]
+    x = grid.nodes
+    fixed = solver.fixed.reshape(-1, 2)
+    assert np.array_equal(fixed[:, 0], np.isclose(x[:, 0], 0))  # the left edge on rollers along x
+    assert np.flatnonzero(fixed[:, 1]).tolist() == [0]  # one node held along y: the corner
+    F = solver.forces.reshape(-1, 2)
+    assert F[:, 0].sum() == pytest.approx(1.0) and np.all(F[~np.isclose(x[:, 0], 4), 0] == 0)
+    assert np.allclose(F[np.isclose(x[:, 0], 4), 0], 1.0 / 11)
+
+
+def test_upsample_keeps_each_element_value():
+    v = np.arange(6.0)
+    up = upsample(v, (3, 2)).reshape(6, 4)
+    assert np.array_equal(up[::2, ::2], v.reshape(3, 2)) and np.array_equal(up[1::2, 1::2], v.reshape(3, 2))
+
+
+def test_report_of_a_solid_bar_against_its_closed_form():
+    """E all solid: compliance F^2 L / (E A) = 4 / 2 = 2 (the end loads shared equally by the end
+    nodes rather than as a uniform traction: within 1 %)."""
+    rep = ComplianceReport(_spec().build())
+
+    def solid(x, z=None):
+        return -torch.ones(x.shape[0], dtype=x.dtype)
+
+    m = rep.measure(None, None, solid, None)
+    assert m["compliance"] == pytest.approx(2.0, rel=0.01)
+    assert m["compliance_cases"] == [m["compliance"]]
+    # the far corner moves by s L / E = 2 along x and nu s / E = 0.15 across: |u| = 2.0056, plus the
+    # local strain of the equal end-node shares
+    assert 2.0056 <= m["max_displacement"] <= 2.0056 * 1.03
+    assert rep.violation(m) is None and rep.ratio(m) is None  # reported, never violated
+
+
+def _setting(problem="mbb", spec=None):
+    spec_obj, cfg = runs.resolve(problem if spec is None else spec, None, {}, sets=["structural.cells=30"])
+    return Setting(spec_obj.build(), cfg, torch.device("cpu"), torch.float64)
+
+
+def test_volume_offset_meets_the_bound_with_its_implicit_gradient():
+    c = Compliance(_setting())
+    rng = np.random.default_rng(0)
+    n = c.grid.n_elements
+    f = torch.tensor(rng.normal(-0.2, 0.3, (2, n)), dtype=torch.float64, requires_grad=True)
+    t = c.offset(f)
+    assert torch.all(t < 0)  # both shapes are over the bound of 0.5 and move
+    mass = c.density(f - t).sum(dim=1)
+    assert torch.allclose(mass, torch.full_like(mass, 0.5 * n), rtol=1e-9)
+    g = torch.autograd.grad(t[0, 0], f)[0]
+    for e in rng.choice(n, 5, replace=False):  # against central differences of the bisection
+        d = torch.zeros_like(f)
+        d[0, e] = 1e-6
+        fd = (c.offset(f.detach() + d)[0, 0] - c.offset(f.detach() - d)[0, 0]) / 2e-6
+        assert float(g[0, e]) == pytest.approx(float(fd), rel=1e-4, abs=1e-9)
+    under = c.offset(torch.full((1, n), 1.0, dtype=torch.float64))  # an empty shape stays
+    assert float(under) == 0.0
+
+
+def test_simp_reference_of_the_mbb_problem():
+    p = get_spec("mbb").build()
+    ref = simp_reference(p)
+    assert ref.solid.mean() == pytest.approx(0.5, abs=1e-3)
+    assert ref.result.volume_fraction == pytest.approx(0.5, abs=1e-3)
+    assert ref.compliance < 0.25 * ComplianceReport(p).measure(None, None, lambda x, z=None: x[:, 0] - 1.5, None)["compliance"]
