@@ -130,3 +130,22 @@ def test_simp_reference_of_the_mbb_problem():
     assert ref.solid.mean() == pytest.approx(0.5, abs=1e-3)
     assert ref.result.volume_fraction == pytest.approx(0.5, abs=1e-3)
     assert ref.compliance < 0.25 * ComplianceReport(p).measure(None, None, lambda x, z=None: x[:, 0] - 1.5, None)["compliance"]
+
+
+def test_strain_energy_density_of_a_bar_and_its_figure(tmp_path):
+    """A bar in uniform tension: energy density s^2 / (2 E) = 1 / 4 in the elements away from its
+    loaded end; the figure is written."""
+    from ginn.viz.structural import plot_strain_energy
+
+    p = _spec().build()
+    rep = ComplianceReport(p)
+
+    def solid(x, z=None):
+        return -torch.ones(x.shape[0], dtype=x.dtype)
+
+    is_solid, U, density = rep.analyse(solid, None)
+    grid = rep.fine()[0]
+    inner = (grid.centres[:, 0] > 1.0) & (grid.centres[:, 0] < 3.0)
+    assert is_solid.all() and np.allclose(density[0].numpy()[inner], 0.25, rtol=0.02)
+    path = plot_strain_energy(solid, None, p, tmp_path / "se.png", rep)
+    assert path.stat().st_size > 1000

@@ -89,14 +89,23 @@ class ComplianceReport(Verdict):
                 out.append(fields.evaluate(field, xc, zc, grad=False, create_graph=False).f.reshape(-1).cpu())
         return (torch.cat(out).numpy() <= 0) & ~void
 
-    def measure(self, shape, context, field, z) -> dict[str, Any]:
-        grid, solver, w, _ = self.fine()
+    def analyse(self, field, z) -> tuple[np.ndarray, torch.Tensor, torch.Tensor]:
+        """The thresholded shape solved on the fine grid: its solid elements ``(n_elements,)``, the
+        displacements ``(L, n_dofs)`` and the strain-energy density of each element ``(L, n_elements)``
+        (``E_e u_e^T K0 u_e / (2 V_e)``)."""
+        grid, solver, _, _ = self.fine()
         solid = self.solid(field, z)
         E = float(self.problem.physics.youngs_modulus)
         moduli = torch.as_tensor(E * np.where(solid, 1.0, REPORT_VOID))
         U = solver.solve(moduli)
-        cases = solver.work(U)[0].numpy()
-        disp = U[0].reshape(U.shape[1], -1, grid.dim).norm(dim=-1).max()
+        density = moduli[None] * solver.element_energy(U)[0] / (2.0 * grid.element_volume)
+        return solid, U[0], density
+
+    def measure(self, shape, context, field, z) -> dict[str, Any]:
+        grid, solver, w, _ = self.fine()
+        _, U, _ = self.analyse(field, z)
+        cases = solver.work(U[None])[0].numpy()
+        disp = U.reshape(U.shape[0], -1, grid.dim).norm(dim=-1).max()
         return {"compliance": float(w @ cases), "compliance_cases": [float(c) for c in cases],
                 "max_displacement": float(disp)}
 
