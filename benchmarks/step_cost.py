@@ -16,7 +16,9 @@ For each configuration it prints seconds per iteration (the median over ``--bloc
 speed hits all of them alike) and the share of each part of a step (of all blocks together; a
 part inside another counts for itself only): sampling, the main pass (with the terms computed
 from its values), the zero-level-set projection, curvature and strain (with their Hessian
-pass), diversity, connectedness, and the backward pass with the optimiser step, and the share
+pass), diversity, connectedness, the compliance term of a structural problem (the field at the
+element centres, the volume offset) and its finite-element solves apart, and the backward pass
+with the optimiser step, and the share
 of connectedness calls that rebuilt the whole surface network (the rest are warm updates,
 ``docs/connectedness.md``). ``--shapes`` overrides the number of shapes of generative shape
 presets and prints the scaling exponent of the step cost (``t ~ S^a`` between the first and the
@@ -52,6 +54,7 @@ import torch
 from ginn import runs
 from ginn.config import deep_merge, parse_set
 from ginn.constraints import Batch
+from ginn.physics import ElasticitySolver
 from ginn.tasks import make_task
 from ginn.tasks.shape import ShapeTask
 from ginn.topology import trace_surface_network
@@ -63,11 +66,12 @@ diversity_module = importlib.import_module("ginn.losses.diversity")
 #: the part of a step each constraint's loss is charged to (the rest: the main pass, with the
 #: terms computed from its values)
 CHARGED = {"mean_curvature": "curvature/strain", "strain": "curvature/strain", "diversity": "diversity",
-           "connectedness": "connectedness"}
+           "connectedness": "connectedness", "compliance": "compliance"}
 
 SUITE = sorted(str(p) for p in (Path(__file__).resolve().parent / "suite").glob("*.yaml")) + ["obstacle", "bracket", "wheel"]
 PRESETS = ["obstacle:demo", "obstacle:quick", "bracket:cpu", "bracket:cpu-gen", "plateau:cpu", "mirror:", "gray-scott:quick"]
-PARTS = ["sampling", "main pass", "projection", "curvature/strain", "diversity", "connectedness", "backward+step"]
+PARTS = ["sampling", "main pass", "projection", "curvature/strain", "diversity", "connectedness", "compliance", "FE solves",
+         "backward+step"]
 
 
 class Clock:
@@ -178,6 +182,7 @@ def build(preset: str, shapes: int | None, device: str, threads: int, from_itera
                 c._fn = _Timed(loss, clock)
         for attr, name in (("evaluate", "main pass"), ("_project", "projection")):
             clock.wrap_class(Batch, attr, name)
+        clock.wrap_class(ElasticitySolver, "solve", "FE solves")
     clock.wrap(task, "loss_terms", "loss")
     return trainer, clock
 

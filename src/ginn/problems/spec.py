@@ -314,6 +314,15 @@ class ProblemSpec(BaseModel):
             raise ValueError(f"must be text; YAML read it as {v!r}: put the name in quotes")
         return v
 
+    @field_validator("physics")
+    @classmethod
+    def _needs_volume_bound(cls, v, info: ValidationInfo):
+        t = info.data.get("tolerances")
+        if v is not None and (t is None or t.volume_fraction is None or t.volume_fraction.max is None):
+            raise ValueError("a structural problem needs tolerances.volume_fraction.max (without a volume bound the "
+                             "stiffest shape is all of E)")
+        return v
+
     @field_validator("geometry")
     @classmethod
     def _needs_geometry(cls, v, info: ValidationInfo):
