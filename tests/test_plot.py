@@ -50,6 +50,7 @@ def test_loss_curve_panels_group_families_in_order():
     assert panels["multipliers"]["interface"] == ([0.0, 1.0], [1.0, 2.0])
     assert panels["feasibility"] == {"feasible": ([2.0], [0.0]), "shapes": ([2.0], [4.0])}  # no bool, no time
     assert panels["feasibility: mean.ratios"] == {"interface": ([2.0], [1.5])}
+    assert panels["diagnostics"] == {"boundary_converged": ([0.0], [1.0])}
     assert list(loss_curve_panels(records, keys=["lr"])) == ["lr"]
 
 

@@ -49,8 +49,8 @@ def _panel(key: str, event: str | None) -> tuple[str, str]:
         return group, leaf
     if key in _ALONE:
         return key, key
-    if key.startswith("_"):
-        return "diagnostics", key
+    if key.startswith("_"):  # the label without its underscore: matplotlib leaves "_..." out of legends
+        return "diagnostics", key.lstrip("_")
     return LOSSES, key
 
 
