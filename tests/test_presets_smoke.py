@@ -33,6 +33,7 @@ def test_preset_trains_two_iterations(name, preset, tmp_path):
     if spec.kind == "shape":
         over["sampling"] = SMALL_SAMPLING
         over["connectedness"] = {"grid": 8}  # the seed grid of the critical points
+        over["structural"] = {"cells": 12}  # the element grid of a structural problem
     if spec.kind == "gray-scott":
         over["params"] = {"grid": 16}
     cfg = spec.config(preset, over)

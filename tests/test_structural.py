@@ -199,3 +199,16 @@ def test_a_bar_in_tension_trains_to_the_straight_bar(tmp_path):
     solid, _, _ = rep.analyse(run.model, None)
     off_axis = np.abs(rep.fine()[0].centres[solid, 1] - 0.5)
     assert off_axis.max() <= 0.25
+
+
+def test_load_cases_weighted_and_quadratic_in_the_force():
+    """Two load cases, the second pulling twice as hard: its compliance is 4 times the first's
+    (compliance is quadratic in the load) and the report weighs them as the spec says."""
+    cases = [{"loads": [{"interface": 1, "force": [1.0, 0.0]}], "weight": 1.0},
+             {"loads": [{"interface": 1, "force": [2.0, 0.0]}], "weight": 0.5}]
+    p = _spec(loads=None, load_cases=cases).build()
+    assert [c.weight for c in p.physics.load_cases] == [1.0, 0.5]
+    m = ComplianceReport(p).measure(None, None, lambda x, z=None: -torch.ones(x.shape[0], dtype=x.dtype), None)
+    c1, c2 = m["compliance_cases"]
+    assert c2 == pytest.approx(4 * c1, rel=1e-9)
+    assert m["compliance"] == pytest.approx(c1 + 0.5 * c2, rel=1e-12)
