@@ -5,8 +5,8 @@ Every step evaluates each shape's field at the centres of the element grid
 (:func:`ginn.problems.structural.structural_grid`), turns it into element densities by a smoothed
 step whose width follows the element size, ``rho = sigmoid(-f / w)`` with ``w`` half the smallest
 element side (a field that is a distance goes from 0.12 to 0.88 across one element), and into
-moduli ``E (void + (1 - void) rho^p)`` (``structural.penalty`` ``p``, SIMP's: grey elements carry
-little), the elements outside E or in an obstacle held void. All shapes of the step are solved in
+moduli ``E (VOID + (1 - VOID) rho^PENALTY)`` (:mod:`ginn.problems.structural`: 1e-6 and 3, SIMP's:
+grey elements carry little), the elements outside E or in an obstacle held void. All shapes of the step are solved in
 one call (:func:`ginn.physics.compliance`), which hands autograd the adjoint gradient.
 
 Under a volume bound (``tolerances.volume_fraction.max``) the compliance is that of the shape
@@ -39,21 +39,20 @@ import torch
 from torch import Tensor
 
 from .. import fields
+from ..extract.sampling import field_dtype_device
 from ..physics import compliance
 from ..problems.derived import smallest_feature
 from ..problems.problem import Problem
-from ..problems.structural import structural_grid, structural_solver, void_elements
+from ..problems.structural import PENALTY, VOID, structural_grid, structural_solver, void_elements
 from .base import Constraint, Setting, Stage
 from .batch import Batch
 from .verdict import Verdict, Violation
 
-__all__ = ["Compliance", "ComplianceReport", "REPORT_VOID", "ELEMENTS"]
+__all__ = ["Compliance", "ComplianceReport", "ELEMENTS"]
 
 #: the key of the element centres' field values in a step (:meth:`ginn.constraints.batch.Batch.field_at`)
 ELEMENTS = "elements"
 
-#: the void's modulus (relative to the solid's) in the report's solves
-REPORT_VOID = 1e-6
 
 
 class ComplianceReport(Verdict):
@@ -78,8 +77,7 @@ class ComplianceReport(Verdict):
     def solid(self, field, z) -> np.ndarray:
         """``(n_elements,)`` bool: the fine grid's elements whose centre the shape holds (``f <= 0``) in E."""
         grid, _, _, void = self.fine()
-        p = next(iter(field.parameters()), None) if isinstance(field, torch.nn.Module) else None
-        dtype, device = (p.dtype, p.device) if p is not None else (torch.float64, torch.device("cpu"))
+        dtype, device = field_dtype_device(field, z if isinstance(z, torch.Tensor) else None)
         x = torch.as_tensor(grid.centres, dtype=dtype, device=device)
         out = []
         with torch.no_grad():
@@ -96,7 +94,7 @@ class ComplianceReport(Verdict):
         grid, solver, _, _ = self.fine()
         solid = self.solid(field, z)
         E = float(self.problem.physics.youngs_modulus)
-        moduli = torch.as_tensor(E * np.where(solid, 1.0, REPORT_VOID))
+        moduli = torch.as_tensor(E * np.where(solid, 1.0, VOID))
         U = solver.solve(moduli)
         density = moduli[None] * solver.element_energy(U)[0] / (2.0 * grid.element_volume)
         return solid, U[0], density
@@ -132,8 +130,6 @@ class Compliance(Constraint):
         self.void = torch.as_tensor(void_elements(p, self.grid), device=dev)
         self.centres = torch.as_tensor(self.grid.centres, dtype=setting.dtype, device=dev)
         self.width = 0.5 * float(self.grid.h.min())
-        self.penalty = float(cfg.penalty)
-        self.void_modulus = float(cfg.void)
         self.modulus = float(p.physics.youngs_modulus)
         solid = torch.where(self.void, 0.0, 1.0).to(torch.float64)[None]
         c, _ = compliance(self.moduli(solid), self.solver)
@@ -176,7 +172,7 @@ class Compliance(Constraint):
     def moduli(self, rho: Tensor) -> Tensor:
         """Element moduli (float64) of densities ``rho``."""
         rho = rho.to(torch.float64)
-        return self.modulus * (self.void_modulus + (1.0 - self.void_modulus) * rho**self.penalty)
+        return self.modulus * (VOID + (1.0 - VOID) * rho**PENALTY)
 
     def state_dict(self) -> dict:
         """The CG solver's warm starts (empty for the direct solver)."""
