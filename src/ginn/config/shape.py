@@ -106,9 +106,6 @@ class StructuralConfig(Strict):
 
     cells: int = Field(0, ge=0, description="elements along the domain's longest side (0: 90 in 2D, 36 in 3D, or more "
                        "where the smallest interface would span fewer than 4 elements)")
-    penalty: float = Field(3.0, ge=1.0, description="the modulus of an element is void + (1 - void) rho^penalty, rho the "
-                           "smoothed step of the field at its centre (SIMP's penalty: grey elements are weak)")
-    void: float = Field(1e-6, gt=0, lt=1, description="the modulus of void relative to the solid's (the ersatz material)")
     method: Literal["auto", "direct", "cg"] = Field(
         "auto", description="the linear solver: direct (sparse LU), cg (batched matrix-free conjugate gradients), auto "
         "(direct for 2D on the CPU, cg otherwise)")

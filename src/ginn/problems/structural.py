@@ -8,8 +8,12 @@ centre lies outside the design region or inside an obstacle are void.
 :func:`simp_reference` runs the SIMP optimiser (:func:`ginn.physics.simp`) on the same grid,
 the baseline the structural results are measured against.
 
+The material model of the shapes' elements is SIMP's: modulus ``E (VOID + (1 - VOID) rho^PENALTY)``
+for a density ``rho`` (the reference optimiser, the training term and the report share it).
+
 Public names: :func:`structural_solver`, :func:`structural_grid`, :func:`void_elements`,
-:func:`simp_reference`, :func:`upsample`, :class:`Reference`, :data:`CELLS`.
+:func:`simp_reference`, :func:`upsample`, :class:`Reference`, :data:`CELLS`, :data:`VOID`,
+:data:`PENALTY`.
 """
 
 from __future__ import annotations
@@ -26,7 +30,13 @@ from ..physics import ElasticitySolver, ElementGrid, SimpResult, simp
 from .derived import smallest_feature
 from .problem import Problem
 
-__all__ = ["structural_solver", "structural_grid", "void_elements", "simp_reference", "upsample", "Reference", "CELLS"]
+__all__ = ["structural_solver", "structural_grid", "void_elements", "simp_reference", "upsample", "Reference", "CELLS",
+           "VOID", "PENALTY"]
+
+#: the ersatz material: the modulus of void relative to the solid's
+VOID = 1e-6
+#: SIMP's penalty exponent: grey elements carry little
+PENALTY = 3.0
 
 #: elements along the domain's longest side, per dimension, unless the smallest interface needs more
 CELLS = {2: 90, 3: 36}
@@ -125,7 +135,7 @@ class Reference:
     compliance: float
 
 
-def simp_reference(problem: Problem, *, filter_radius: float = 1.5, penalty: float = 3.0, void: float = 1e-6) -> Reference:
+def simp_reference(problem: Problem, *, filter_radius: float = 1.5) -> Reference:
     """SIMP (density filter of ``filter_radius`` elements) on ``problem``'s default grid at its volume
     bound (``tolerances.volume_fraction.max``), the elements outside E held void, thresholded at the
     bound's volume and re-solved on the grid refined twice."""
@@ -135,13 +145,13 @@ def simp_reference(problem: Problem, *, filter_radius: float = 1.5, penalty: flo
     grid = structural_grid(problem, 0, smallest_feature(problem))
     solver, w = structural_solver(problem, grid)
     held = void_elements(problem, grid)
-    res = simp(solver, float(b.max), penalty=penalty, filter_radius=filter_radius, weights=w, passive_void=held)
+    res = simp(solver, float(b.max), penalty=PENALTY, filter_radius=filter_radius, weights=w, passive_void=held)
     n_solid = int(round(float(b.max) * (~held).sum()))
     solid = np.zeros(grid.n_elements, bool)
     solid[np.argsort(-np.where(held, -1.0, res.density), kind="stable")[:n_solid]] = True
     fine = grid.refined(2)
     fsolver, _ = structural_solver(problem, fine)
     E = float(problem.physics.youngs_modulus)
-    moduli = torch.as_tensor(E * np.where(upsample(solid, grid.shape), 1.0, void))
+    moduli = torch.as_tensor(E * np.where(upsample(solid, grid.shape), 1.0, VOID))
     c = float(w @ fsolver.work(fsolver.solve(moduli))[0].numpy())
     return Reference(res, solid, c)
