@@ -13,7 +13,7 @@ from ginn.constraints.base import Setting
 from ginn.constraints.compliance import Compliance, ComplianceReport
 from ginn.errors import SpecError
 from ginn.problems import get_spec, validate_spec
-from ginn.problems.structural import simp_reference, structural_grid, structural_solver, upsample
+from ginn.problems.structural import couple, simp_reference, structural_grid, structural_solver, upsample
 
 BAR = {
     "name": "bar",
@@ -39,6 +39,9 @@ _BAD = [
     ({"material": {"poisson_ratio": -1.0}}, "physics.material.poisson_ratio"),
     ({"loads": [{"interface": 1, "force": [1.0]}]}, "physics.loads[0].force"),
     ({"loads": None}, "physics"),
+    ({"loads": [{"interface": 1}]}, "physics.loads[0]"),  # neither force nor torque
+    ({"loads": [{"interface": 1, "torque": [1.0, 0.0]}]}, "physics.loads[0]"),  # 2D: a number
+    ({"loads": [{"interface": [], "force": [1.0, 0.0]}]}, "physics.loads[0].interface"),
 ]
 
 
@@ -56,6 +59,7 @@ def test_bad_physics_refused_in_one_line(change, field):
 
 @pytest.mark.parametrize("change,text", [
     ({"loads": [{"interface": 5, "force": [1.0, 0.0]}]}, "'physics.loads[0].interface': no interface 5"),
+    ({"loads": [{"interface": [1, 7], "force": [1.0, 0.0]}]}, "'physics.loads[0].interface': no interface 7"),
     ({"loads": [{"region": {"type": "disk", "center": [9, 9], "radius": 0.1}, "force": [1.0, 0.0]}]},
      "'physics.loads[0]': reaches no node"),
     ({"supports": [{"region": {"type": "disk", "center": [9, 9], "radius": 0.1}}]}, "'physics.supports[0]': reaches no node"),
@@ -83,6 +87,60 @@ def test_supports_and_loads_on_the_grid():
     F = solver.forces.reshape(-1, 2)
     assert F[:, 0].sum() == pytest.approx(1.0) and np.all(F[~np.isclose(x[:, 0], 4), 0] == 0)
     assert np.allclose(F[np.isclose(x[:, 0], 4), 0], 1.0 / 11)
+
+
+def _moment(x, F):
+    """The moment of nodal forces ``F`` at ``x`` about the origin: ``(1,)`` in 2D, ``(3,)`` in 3D."""
+    if x.shape[1] == 2:
+        return np.array([(x[:, 0] * F[:, 1] - x[:, 1] * F[:, 0]).sum()])
+    return np.cross(x, F).sum(axis=0)
+
+
+def test_a_torque_is_a_couple_of_its_moment():
+    """On the bar's two end edges together (one load on a list of interfaces): zero net force, the
+    stated moment, and forces across the bar's axis (a couple about z)."""
+    p = _spec(loads=[{"interface": [0, 1], "torque": 3.0}]).build()
+    solver, _ = structural_solver(p, structural_grid(p, 40))
+    x, F = solver.grid.nodes, solver.forces.reshape(-1, 2)
+    loaded = np.abs(F).sum(axis=1) > 0
+    assert np.allclose(F.sum(axis=0), 0, atol=1e-12) and _moment(x, F) == pytest.approx([3.0])
+    assert set(np.unique(x[loaded, 0])) == {0.0, 4.0}
+
+
+def test_a_3d_couple_and_the_points_that_cannot_carry_one():
+    rng = np.random.default_rng(1)
+    x = rng.normal(size=(30, 3)) + 5.0
+    M = (1.0, -2.0, 0.5)
+    F = couple(x, M)
+    assert np.allclose(F.sum(axis=0), 0, atol=1e-12) and np.allclose(_moment(x, F), M)
+    line = np.stack([np.zeros(5), np.zeros(5), np.arange(5.0)], axis=1)  # on the z axis
+    assert np.allclose(_moment(line, couple(line, (1.0, 0.0, 0.0))), (1.0, 0.0, 0.0))  # about x: carried
+    with pytest.raises(ValueError, match="axis"):
+        couple(line, (0.0, 0.0, 1.0))  # about its own line: no lever
+    with pytest.raises(ValueError, match="one node"):
+        couple(np.ones((1, 2)), (1.0,))
+
+
+def test_bracket_loads_is_the_bracket_under_the_challenge_loads():
+    """The geometry is the `bracket` problem's; on a coarse grid each load case carries its stated
+    force or torque (lbf, lbf x unit: 5000 lbf-in over the unit's 3.54669 in) through both pin
+    holes, and the four bolt holes are held."""
+    loads, plain = get_spec("bracket-loads"), get_spec("bracket")
+    assert loads.geometry == plain.geometry
+    p = loads.build()
+    solver, w = structural_solver(p, structural_grid(p, 20))
+    x, F = solver.grid.nodes, solver.forces.reshape(4, -1, 3)
+    assert w.tolist() == [1.0] * 4
+    s42, c42 = np.sin(np.radians(42)), np.cos(np.radians(42))
+    for case, total in zip(F, ([0, 0, 8000], [-8500, 0, 0], [-9500 * s42, 0, 9500 * c42], [0, 0, 0])):
+        assert np.allclose(case.sum(axis=0), total, atol=0.1)
+    torsion = F[3]
+    assert np.allclose(np.cross(x, torsion).sum(axis=0), [0, 0, 5000 / (90.0859 / 25.4)], atol=0.01)
+    lugs = np.abs(torsion).sum(axis=1) > 0
+    assert set(np.sign(x[lugs, 1]).astype(int)) == {-1, 1}  # both lugs, either side of y = 0
+    held = solver.fixed.reshape(-1, 3).all(axis=1)
+    assert np.all(x[held, 2] < -0.2)  # at the base plate's bolt holes
+    assert {(int(np.sign(a)), int(np.sign(b))) for a, b in x[held, :2]} == {(1, 1), (-1, 1), (1, -1), (-1, -1)}
 
 
 def test_upsample_keeps_each_element_value():

@@ -6,11 +6,11 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Annotated, Literal
 
-from pydantic import Field, model_validator
+from pydantic import Field, ValidationInfo, model_validator
 
 from ..errors import SpecError
 from ..geometry.base import Interface, Region
-from .nodes import Node, Point, Positive
+from .nodes import Finite, Node, Point, Positive, spec_dim
 from .problem import Load, LoadCase, Physics, Support
 from .regions import RegionSpec
 
@@ -19,10 +19,14 @@ __all__ = ["PhysicsSpec"]
 AXES = {"x": 0, "y": 1, "z": 2}
 
 
-class PlaceSpec(Node):
-    """Where a support or a load acts: an interface (its index in ``geometry.interfaces``) or a region."""
+Index = Annotated[int, Field(ge=0)]
 
-    interface: Annotated[int, Field(ge=0)] | None = Field(None, description="index in geometry.interfaces")
+
+class PlaceSpec(Node):
+    """Where a support or a load acts: interfaces (indices in ``geometry.interfaces``) or a region."""
+
+    interface: Index | Annotated[list[Index], Field(min_length=1)] | None = Field(
+        None, description="an index in geometry.interfaces, or a list of them (acting as one)")
     region: RegionSpec | None = Field(None, description="a region of the problem's space")
 
     @model_validator(mode="after")
@@ -31,13 +35,16 @@ class PlaceSpec(Node):
             raise ValueError("state either interface (an index into geometry.interfaces) or region")
         return self
 
-    def place(self, interfaces: tuple[Interface, ...], dim: int, base: Path, path: str) -> Interface | Region:
+    def place(self, interfaces: tuple[Interface, ...], dim: int, base: Path, path: str) -> tuple[Interface | Region, ...]:
         if self.region is not None:
-            return self.region.make(dim, base, f"{path}.region")
-        if self.interface >= len(interfaces):
-            raise SpecError(f"spec field '{path}.interface': no interface {self.interface} "
-                            f"(geometry.interfaces has {len(interfaces)})")
-        return interfaces[self.interface]
+            return (self.region.make(dim, base, f"{path}.region"),)
+        out = []
+        for i in [self.interface] if isinstance(self.interface, int) else self.interface:
+            if i >= len(interfaces):
+                raise SpecError(f"spec field '{path}.interface': no interface {i} "
+                                f"(geometry.interfaces has {len(interfaces)})")
+            out.append(interfaces[i])
+        return tuple(out)
 
 
 class SupportSpec(PlaceSpec):
@@ -48,9 +55,30 @@ class SupportSpec(PlaceSpec):
 
 
 class LoadSpec(PlaceSpec):
-    """A force at an interface or in a region (the total, shared by the nodes there)."""
+    """A force and/or a torque at interfaces or in a region."""
 
-    force: Point = Field(description="the total force vector, in the problem's force unit")
+    force: Point | None = Field(None, description="the total force vector, shared equally by the nodes there")
+    torque: Finite | list[Finite] | None = Field(
+        None, description="the moment of a couple about the nodes' centroid: a number in 2D (about z), a vector in 3D")
+
+    @model_validator(mode="after")
+    def _some(self, info: ValidationInfo):
+        if self.force is None and self.torque is None:
+            raise ValueError("state a force, a torque or both")
+        d = spec_dim(info)
+        if self.torque is not None and d is not None:
+            if d == 2 and not isinstance(self.torque, int | float):
+                raise ValueError("torque: a 2D problem's torque is a number (the moment about z)")
+            if d == 3 and (isinstance(self.torque, int | float) or len(self.torque) != 3):
+                raise ValueError("torque: a 3D problem's torque is a vector of 3 components")
+        return self
+
+    def vectors(self, dim: int) -> tuple[tuple[float, ...], tuple[float, ...]]:
+        """``(force (dim,), torque)``: zeros for what is not stated; the torque ``(1,)`` in 2D, ``(3,)`` in 3D."""
+        force = tuple(float(v) for v in self.force) if self.force is not None else (0.0,) * dim
+        if self.torque is None:
+            return force, ()
+        return force, (float(self.torque),) if isinstance(self.torque, int | float) else tuple(map(float, self.torque))
 
 
 class LoadCaseSpec(Node):
@@ -102,7 +130,7 @@ class PhysicsSpec(Node):
             cases_in = [(c.loads, c.weight, f"physics.load_cases[{k}].loads") for k, c in enumerate(self.load_cases)]
         cases, case_labels = [], []
         for loads, weight, prefix in cases_in:
-            built = tuple(Load(ld.place(interfaces, dim, base, f"{prefix}[{j}]"), tuple(float(v) for v in ld.force))
+            built = tuple(Load(ld.place(interfaces, dim, base, f"{prefix}[{j}]"), *ld.vectors(dim))
                           for j, ld in enumerate(loads))
             cases.append(LoadCase(built, float(weight)))
             case_labels.append(tuple(f"{prefix}[{j}]" for j in range(len(loads))))

@@ -131,19 +131,28 @@ class Tolerances:
 @dataclass(frozen=True)
 class Support:
     """Degrees of freedom held at zero: the components ``axes`` (0: x, 1: y, 2: z) of the finite-element
-    nodes within half an element of ``where`` (an interface or a region)."""
+    nodes within half an element of any of ``where`` (interfaces or regions)."""
 
-    where: Interface | Region
+    where: tuple[Interface | Region, ...]
     axes: tuple[int, ...]
 
 
 @dataclass(frozen=True)
 class Load:
-    """A force ``(d,)`` (total, in the problem's force unit) shared equally by the finite-element nodes
-    within half an element of ``where`` (an interface or a region)."""
+    """A force and a torque on the finite-element nodes within half an element of any of ``where``
+    (interfaces or regions).
 
-    where: Interface | Region
+    Attributes:
+        where: the interfaces or regions.
+        force: ``(d,)``, the total force, shared equally by the nodes.
+        torque: the moment of a couple (zero net force) about the nodes' centroid: ``(1,)`` in 2D
+            (about z), ``(3,)`` in 3D; the nodal forces are those of a rigid rotation's
+            displacements, scaled to give this moment (``ginn.problems.structural``).
+    """
+
+    where: tuple[Interface | Region, ...]
     force: tuple[float, ...]
+    torque: tuple[float, ...] = ()
 
 
 @dataclass(frozen=True)

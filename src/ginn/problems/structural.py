@@ -2,7 +2,8 @@
 the held degrees of freedom and nodal forces of an :class:`~ginn.physics.ElasticitySolver`.
 
 A support or load acts on the grid nodes within half an element (half the longest element side)
-of its interface or region; a load's force is shared equally by its nodes. The elements whose
+of its interfaces or region; a load's force is shared equally by its nodes, its torque is a couple
+of nodal forces (:func:`couple`). The elements whose
 centre lies outside the design region or inside an obstacle are void.
 
 :func:`simp_reference` runs the SIMP optimiser (:func:`ginn.physics.simp`) on the same grid,
@@ -11,7 +12,7 @@ the baseline the structural results are measured against.
 The material model of the shapes' elements is SIMP's: modulus ``E (VOID + (1 - VOID) rho^PENALTY)``
 for a density ``rho`` (the reference optimiser, the training term and the report share it).
 
-Public names: :func:`structural_solver`, :func:`structural_grid`, :func:`void_elements`,
+Public names: :func:`structural_solver`, :func:`structural_grid`, :func:`couple`, :func:`void_elements`,
 :func:`simp_reference`, :func:`upsample`, :class:`Reference`, :data:`CELLS`, :data:`VOID`,
 :data:`PENALTY`.
 """
@@ -30,7 +31,7 @@ from ..physics import ElasticitySolver, ElementGrid, SimpResult, simp
 from .derived import smallest_feature
 from .problem import Problem
 
-__all__ = ["structural_solver", "structural_grid", "void_elements", "simp_reference", "upsample", "Reference", "CELLS",
+__all__ = ["structural_solver", "structural_grid", "couple", "void_elements", "simp_reference", "upsample", "Reference", "CELLS",
            "VOID", "PENALTY"]
 
 #: the ersatz material: the modulus of void relative to the solid's
@@ -55,11 +56,38 @@ def structural_grid(problem: Problem, cells: int = 0, smallest: float | None = N
     return ElementGrid.over(d.lo, d.hi, cells)
 
 
-def _near(where: Interface | Region, x: torch.Tensor, reach: float) -> np.ndarray:
-    """``(n,)`` bool: the points ``x`` within ``reach`` of an interface or inside a region grown by ``reach``."""
+def _near(places: tuple[Interface | Region, ...], x: torch.Tensor, reach: float) -> np.ndarray:
+    """``(n,)`` bool: the points ``x`` within ``reach`` of any of the interfaces or inside any of the
+    regions grown by ``reach``."""
+    near = np.zeros(x.shape[0], bool)
     with torch.no_grad():
-        d = where.distance(x) if isinstance(where, Interface) else where.sdf(x)
-    return (d <= reach).cpu().numpy()
+        for where in places:
+            d = where.distance(x) if isinstance(where, Interface) else where.sdf(x)
+            near |= (d <= reach).cpu().numpy()
+    return near
+
+
+def couple(x: np.ndarray, torque: tuple[float, ...]) -> np.ndarray:
+    """Nodal forces ``(n, d)`` at the points ``x`` ``(n, d)`` that sum to zero and whose moment about
+    any point is ``torque`` (``(1,)`` about z in 2D, ``(3,)`` in 3D): each node's force is
+    ``omega x r`` (``r`` from the points' centroid), the displacement of a rigid rotation, with
+    ``omega`` solving ``J omega = torque`` (``J = sum |r|^2 I - r r^T``, the points' polar inertia).
+
+    Raises:
+        ValueError: the points cannot carry the torque (one point, or all on its axis).
+    """
+    r = x - x.mean(axis=0)
+    if x.shape[1] == 2:
+        J = float((r**2).sum())
+        if J <= 1e-30:
+            raise ValueError("one node cannot carry a torque")
+        return (torque[0] / J) * np.stack([-r[:, 1], r[:, 0]], axis=1)
+    M = np.asarray(torque, float)
+    J = (r**2).sum() * np.eye(3) - r.T @ r
+    omega = np.linalg.lstsq(J, M, rcond=None)[0]
+    if not np.allclose(J @ omega, M, rtol=1e-6, atol=1e-9 * max(np.abs(M).max(), 1e-300)):
+        raise ValueError("its nodes lie on the torque's axis and cannot carry it")
+    return np.cross(omega, r)
 
 
 def void_elements(problem: Problem, grid: ElementGrid) -> np.ndarray:
@@ -100,10 +128,15 @@ def structural_solver(problem: Problem, grid: ElementGrid, method: str = "auto")
     for c, case in enumerate(ph.load_cases):
         for j, load in enumerate(case.loads):
             near = _near(load.where, x, reach)
+            label = case_labels[c][j] if case_labels else "physics.loads"
             if not near.any():
-                label = case_labels[c][j] if case_labels else "physics.loads"
                 raise SpecError(f"spec field '{label}': reaches no node of the {'x'.join(map(str, grid.shape))} element grid")
             forces[c, near] += np.asarray(load.force) / near.sum()
+            if load.torque:
+                try:
+                    forces[c, near] += couple(grid.nodes[near], load.torque)
+                except ValueError as e:
+                    raise SpecError(f"spec field '{label}.torque': {e}") from None
     solver = ElasticitySolver(grid, ph.poisson_ratio, fixed.reshape(-1), forces.reshape(len(ph.load_cases), -1),
                               method=method)
     return solver, np.array([case.weight for case in ph.load_cases])
