@@ -3,16 +3,27 @@
 
 Every step evaluates each shape's field at the centres of the element grid
 (:func:`ginn.problems.structural.structural_grid`), turns it into element densities by a smoothed
-step whose width follows the element size, ``rho = sigmoid(-f / w)`` with ``w`` half the smallest
-element side (a field that is a distance goes from 0.12 to 0.88 across one element), and into
-moduli ``E (VOID + (1 - VOID) rho^PENALTY)`` (:mod:`ginn.problems.structural`: 1e-6 and 3, SIMP's:
-grey elements carry little), the elements outside E or in an obstacle held void. All shapes of the step are solved in
-one call (:func:`ginn.physics.compliance`), which hands autograd the adjoint gradient.
+step ``rho = sigmoid(-f / w)`` and into moduli ``E (VOID + (1 - VOID) rho^p)``
+(:mod:`ginn.problems.structural`: VOID 1e-6, a weak ersatz for void), the elements outside E or in
+an obstacle held void. All shapes of the step are solved in one call
+(:func:`ginn.physics.compliance`), which hands autograd the adjoint gradient.
+
+Continuation: the step width ``w`` and the penalty ``p`` start at ``START_WIDTH`` times the
+problem's length scale and at 1, and reach half the smallest element side (a field that is a
+distance goes from 0.12 to 0.88 across one element) and SIMP's 3 by ``CONTINUATION`` of the run,
+the width geometrically and the penalty linearly; then they stay. With the sharp step and penalty
+from the start only the boundary has a gradient and the shape keeps the topology of its first
+steps, as a level-set method keeps its initial guess's: the double-load cantilever (``cantilever``)
+hung its lower load from a strip along the free edge, compliance 8430 against SIMP's 141. A wide
+step lets every element within a few widths of the shape feel the load, and a penalty of 1 makes
+grey material carry in proportion to its density (the compliance is convex in the densities at
+``p = 1``), as SIMP's uniform grey start and penalty continuation do; the same run ended at 166.5.
 
 Under a volume bound (``tolerances.volume_fraction.max``) the compliance is that of the shape
 moved onto the bound: the densities are ``sigmoid(-(f - t) / w)`` with the offset ``t <= 0`` at
-which their sum in E equals the bound's share (found by bisection; 0 where the shape is within the
-bound), and ``t`` carries its implicit gradient ``dt / df_e = r_e / sum r`` (``r = rho (1 - rho)``),
+which their sum in E equals the bound's share less the volume term's margin
+(:func:`volume_margin`, :mod:`ginn.constraints.volume`; found by bisection; 0 where the shape is
+within it), and ``t`` carries its implicit gradient ``dt / df_e = r_e / sum r`` (``r = rho (1 - rho)``),
 as an optimality-criteria step holds SIMP's volume. So the compliance rewards moving material, not
 adding it; the volume term alone sets how much there is. Without it the compliance's pull on the
 volume beat the volume term: the half MBB beam (``mbb``) ended at a volume fraction of 0.578
@@ -40,7 +51,7 @@ from torch import Tensor
 
 from .. import fields
 from ..extract.sampling import field_dtype_device
-from ..physics import compliance
+from ..physics import ElementGrid, compliance
 from ..problems.derived import smallest_feature
 from ..problems.problem import Problem
 from ..problems.structural import PENALTY, VOID, structural_grid, structural_solver, void_elements
@@ -48,11 +59,41 @@ from .base import Constraint, Setting, Stage
 from .batch import Batch
 from .verdict import Verdict, Violation
 
-__all__ = ["Compliance", "ComplianceReport", "ELEMENTS"]
+__all__ = ["Compliance", "ComplianceReport", "ELEMENTS", "CONTINUATION", "START_WIDTH", "START_PENALTY", "covered",
+           "volume_margin"]
 
 #: the key of the element centres' field values in a step (:meth:`ginn.constraints.batch.Batch.field_at`)
 ELEMENTS = "elements"
+#: the share of the run over which the step width and the penalty reach their final values
+CONTINUATION = 0.5
+#: the step width at the start, in units of the problem's length scale (half its longest side)
+START_WIDTH = 0.1
+#: the penalty exponent at the start (compliance is convex in the densities at 1)
+START_PENALTY = 1.0
 
+
+def covered(f: Tensor, grid: ElementGrid) -> Tensor:
+    """The share of each element that the shape covers, ``(S, n_elements)``, from the field values at
+    the centres ``(S, n_elements)``: the field taken as linear across an element, with the gradient
+    ``g`` of central differences between centres (detached), ranges over ``f +- e / 2``,
+    ``e = sum_a h_a |g_a|``, and the share where it is negative is the ramp
+    ``clamp(1/2 - f / e, 0, 1)`` (exact for a boundary along a grid axis; a second-order estimate
+    of the volume where the centre count is first-order). Differentiable in ``f``."""
+    S = f.shape[0]
+    with torch.no_grad():
+        grads = torch.gradient(f.detach().reshape(S, *grid.shape), spacing=[float(v) for v in grid.h],
+                               dim=tuple(range(1, grid.dim + 1)))
+        extent = sum(float(h) * g.abs() for h, g in zip(grid.h, grads)).reshape(S, -1).clamp_min(1e-30)
+    return (0.5 - f / extent).clamp(0.0, 1.0)
+
+
+def volume_margin(share: Tensor, in_design: Tensor) -> Tensor:
+    """``(S,)``: how far inside its volume bound a shape is held, the standard error of the centre
+    count of its volume fraction, ``sqrt(n_b / 12) / n_E`` for the ``n_b`` elements in E that its
+    boundary crosses (each counted whole or not at all, off by a share uniform in +-1/2) out of
+    ``n_E``. ``share`` ``(S, n_elements)``: :func:`covered` (detached)."""
+    crossed = ((share > 0) & (share < 1) & in_design).sum(dim=1).to(share.dtype)
+    return (crossed / 12.0).sqrt() / in_design.sum().clamp_min(1).to(share.dtype)
 
 
 class ComplianceReport(Verdict):
@@ -129,14 +170,23 @@ class Compliance(Constraint):
         self.weights = torch.as_tensor(w, dtype=torch.float64, device=dev)
         self.void = torch.as_tensor(void_elements(p, self.grid), device=dev)
         self.centres = torch.as_tensor(self.grid.centres, dtype=setting.dtype, device=dev)
-        self.width = 0.5 * float(self.grid.h.min())
+        self.final_width = 0.5 * float(self.grid.h.min())
+        self.width, self.penalty = self.final_width, PENALTY
         self.modulus = float(p.physics.youngs_modulus)
         solid = torch.where(self.void, 0.0, 1.0).to(torch.float64)[None]
         c, _ = compliance(self.moduli(solid), self.solver)
         self.reference = float((c * self.weights).sum())
 
+    def schedule(self, step: int) -> tuple[float, float]:
+        """``(width, penalty)`` at iteration ``step`` (the continuation of the module docstring)."""
+        n = CONTINUATION * self.setting.cfg.training.iterations
+        a = min(step / n, 1.0) if n > 0 else 1.0
+        w0 = max(START_WIDTH * self.setting.scale, self.final_width)
+        return w0 * (self.final_width / w0) ** a, START_PENALTY + (PENALTY - START_PENALTY) * a
+
     def density(self, f: Tensor) -> Tensor:
-        """Element densities ``(S, n_elements)`` of field values at the centres ``(S, n_elements)``."""
+        """Element densities ``(S, n_elements)`` of field values at the centres ``(S, n_elements)``
+        (at the current step width :attr:`width`)."""
         rho = torch.sigmoid(-f / self.width)
         return torch.where(self.void, torch.zeros_like(rho), rho)
 
@@ -148,9 +198,9 @@ class Compliance(Constraint):
         if b is None or b.max is None:
             return torch.zeros(S, 1, dtype=f.dtype, device=f.device)
         inE = ~self.void
-        target = float(b.max) * float(inE.sum())
         with torch.no_grad():
             fd = f.detach()
+            target = (float(b.max) - volume_margin(covered(fd, self.grid), inE))[:, None] * float(inE.sum())
 
             def mass(t: Tensor) -> Tensor:
                 return torch.where(inE, torch.sigmoid(-(fd - t) / self.width), 0.0).sum(dim=1, keepdim=True)
@@ -170,9 +220,9 @@ class Compliance(Constraint):
         return t0 + (a * (f - fd)).sum(dim=1, keepdim=True)
 
     def moduli(self, rho: Tensor) -> Tensor:
-        """Element moduli (float64) of densities ``rho``."""
+        """Element moduli (float64) of densities ``rho`` (at the current penalty :attr:`penalty`)."""
         rho = rho.to(torch.float64)
-        return self.modulus * (VOID + (1.0 - VOID) * rho**PENALTY)
+        return self.modulus * (VOID + (1.0 - VOID) * rho**self.penalty)
 
     def state_dict(self) -> dict:
         """The CG solver's warm starts (empty for the direct solver)."""
@@ -182,6 +232,7 @@ class Compliance(Constraint):
         self.solver.load_warm_state(state.get("warm", {}), self.setting.device)
 
     def loss(self, batch: Batch) -> Tensor:
+        self.width, self.penalty = self.schedule(batch.step)
         f = batch.field_at(ELEMENTS, self.centres)
         c, _ = compliance(self.moduli(self.density(f - self.offset(f))), self.solver)  # (S, L)
         weighted = (c * self.weights).sum(-1)

@@ -16,11 +16,18 @@ interfaces) would hold it where about half the estimates do, over the bound; mov
 holds the shapes inside. An exact penalty (power 1), like the containment terms.
 
 A structural problem (``physics:``) estimates the fractions on its element grid instead, from the
-field at the element centres that its compliance term evaluates (:mod:`ginn.constraints.compliance`):
-the share of the centres in E where ``f <= 0``, with the gradient of the same smoothed step as the
-element densities (width half an element). The estimate is the same at every step, so it needs no
-margin, and the volume and the stiffness see one material: with the sampled estimate and its
-margin the half MBB beam (``mbb``) ended at a volume fraction of 0.47 under a bound of 0.5.
+field at the element centres that its compliance term evaluates (:mod:`ginn.constraints.compliance`),
+so that the volume and the stiffness see one material (with the sampled estimate and its margin
+the half MBB beam, ``mbb``, ended at a volume fraction of 0.47 under a bound of 0.5): the mean
+over the elements in E of the share each covers (:func:`~ginn.constraints.compliance.covered`, the
+field taken as linear across the element), with its own gradient. The margin ``s`` is the
+standard error of the plain centre count, ``sqrt(n_b / 12) / n_E`` for the ``n_b`` elements the
+boundary crosses (:func:`~ginn.constraints.compliance.volume_margin`), and the compliance term's
+offset holds its shapes the same margin inside the bound: a shape held at the bound on one grid
+lies on either side of it on another. On trained beams and cantilevers the covered-share estimate
+on the training grid was within 5e-4 of that on a grid 8 times finer, the centre count within
+2.8e-3, and the margins were 1.0e-3 to 1.9e-3; without the margin, a beam held at the bound on its
+grid measured 0.50009 under a bound of 0.5 on the evaluation grid.
 
 Verdict: ``volume_fraction`` of ``ginn eval`` (:func:`ginn.eval.metrics.volume_fraction`, grid
 volumes) within the bounds.
@@ -38,7 +45,7 @@ from ..problems.problem import Problem
 from ..problems.structural import structural_grid, void_elements
 from .base import Constraint, Setting
 from .batch import Batch
-from .compliance import ELEMENTS
+from .compliance import ELEMENTS, covered, volume_margin
 from .samples import DOMAIN
 from .verdict import IntervalVerdict
 
@@ -75,24 +82,23 @@ class VolumeFraction(Constraint):
         self.centres: Tensor | None = None
         p = setting.problem
         if p.physics is not None:  # the element grid of the compliance term
-            grid = structural_grid(p, setting.cfg.structural.cells, smallest_feature(p))
-            self.centres = torch.as_tensor(grid.centres, dtype=setting.dtype, device=setting.device)
-            self.in_design = ~torch.as_tensor(void_elements(p, grid), device=setting.device)
-            self.element_width = 0.5 * float(grid.h.min())
+            self.grid = structural_grid(p, setting.cfg.structural.cells, smallest_feature(p))
+            self.centres = torch.as_tensor(self.grid.centres, dtype=setting.dtype, device=setting.device)
+            self.in_design = ~torch.as_tensor(void_elements(p, self.grid), device=setting.device)
 
     @property
     def verdict(self) -> VolumeFractionVerdict:
         return self._verdict
 
     def fractions(self, batch: Batch) -> tuple[Tensor, Tensor]:
-        """The estimated volume fraction of each shape (the share of its samples, with the
-        smoothed count's gradient) and its standard error (detached), ``(S,)`` each."""
+        """The estimated volume fraction of each shape and its margin (detached), ``(S,)`` each:
+        sampled, the share of the samples with the smoothed count's gradient and its standard
+        error; on a structural problem's element grid, the covered shares and the count's
+        standard error (module docstring)."""
         if self.centres is not None:
-            f = batch.field_at(ELEMENTS, self.centres)[:, self.in_design]
-            smooth = torch.sigmoid(-f / self.element_width).mean(dim=1)
-            with torch.no_grad():
-                share = (f <= 0).to(f.dtype).mean(dim=1)
-            return share + (smooth - smooth.detach()), torch.zeros_like(share)
+            share = covered(batch.field_at(ELEMENTS, self.centres), self.grid)
+            v = share[:, self.in_design].mean(dim=1)
+            return v, volume_margin(share.detach(), self.in_design)
         f = batch.f["domain"]  # (S, n)
         x = batch.x["domain"]  # (S, n, d)
         member = self.setting.membership
