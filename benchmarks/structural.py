@@ -12,8 +12,10 @@ iteration (what the 88-line code prints), the compliance of the final design, th
 volume fraction and the seconds.
 
 ``solver`` times solves of one grey-free solid/void design (void modulus 1e-6) with each method on
-2D and 3D grids, and a batch of 8 shapes solved by CG in one call against the same 8 one by one; the
-configurations take turns block by block and the script prints medians and ratios.
+2D and 3D grids, a batch of 8 shapes solved by CG in one call against the same 8 one by one, and
+(with more than one torch thread) the direct method's 16 factorisations of a 90 x 60 batch on all
+threads against one; the configurations take turns block by block and the script prints medians
+and ratios.
 
 ``mbb RUN`` (any structural problem's run, after ``ginn eval RUN``) prints the run's volume
 fractions and compliances from its ``metrics.json`` beside the SIMP reference of its problem
@@ -106,6 +108,21 @@ def run_solver(blocks: int) -> None:
             one.append(time.perf_counter() - t)
         print(f"{shape} CG, 8 shapes: batched {statistics.median(many):.3f} s, one by one {statistics.median(one):.3f} s, "
               f"one by one / batched {statistics.median(one) / statistics.median(many):.2f}")
+    threads = torch.get_num_threads()
+    if threads > 1:
+        s, E = cantilever_case((90, 60), "direct")
+        batch = torch.stack([E * (1 + 0.1 * k) for k in range(16)])
+        timed: dict[int, list[float]] = {1: [], threads: []}
+        for _ in range(blocks):
+            for n in timed:
+                torch.set_num_threads(n)
+                t = time.perf_counter()
+                s.solve(batch)
+                timed[n].append(time.perf_counter() - t)
+        torch.set_num_threads(threads)
+        med = {n: statistics.median(v) for n, v in timed.items()}
+        print(f"(90, 60) direct, 16 shapes: {threads} threads {med[threads]:.3f} s, 1 thread {med[1]:.3f} s, "
+              f"1 / {threads} threads {med[1] / med[threads]:.2f}")
 
 
 def run_against_simp(run: Path) -> None:

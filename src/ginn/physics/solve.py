@@ -8,7 +8,8 @@ forces. Two methods solve ``K u = f``:
 
 * ``direct``: the assembled sparse matrix of the free degrees of freedom (one scatter of the element
   matrices into a precomputed CSR pattern), factorised once per shape by SuperLU (SciPy, minimum
-  degree ordering of ``A^T + A``) and solved for every load case;
+  degree ordering of ``A^T + A``) and solved for every load case; the shapes of a batch on as many
+  threads as torch uses (SuperLU releases the GIL; each shape's solve is the same on any count);
 * ``cg``: matrix-free conjugate gradients in torch, preconditioned by the diagonal, every shape and
   load case of the batch in one set of tensor operations on the moduli's device, warm-started from
   the previous solve of a batch of the same size.
@@ -21,6 +22,8 @@ Public names: :class:`ElasticitySolver`, :data:`METHODS`.
 """
 
 from __future__ import annotations
+
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import scipy.sparse as sp
@@ -124,9 +127,18 @@ class ElasticitySolver:
         En = E.to(torch.float64).cpu().numpy()
         U = np.zeros((En.shape[0], self.n_loads, self.grid.n_dofs))
         F = self.forces[:, self.free].T  # (nf, L)
-        for b in range(En.shape[0]):
+
+        def one(b: int) -> None:
             lu = spla.splu(self.stiffness(En[b]).tocsc(), permc_spec="MMD_AT_PLUS_A")
             U[b][:, self.free] = lu.solve(F).T
+
+        workers = min(En.shape[0], torch.get_num_threads())
+        if workers > 1:  # SuperLU releases the GIL: the shapes' factorisations run side by side
+            with ThreadPoolExecutor(workers) as pool:
+                list(pool.map(one, range(En.shape[0])))
+        else:
+            for b in range(En.shape[0]):
+                one(b)
         return torch.from_numpy(U).to(E.device)
 
     def _torch_data(self, device: torch.device) -> tuple[torch.Tensor, ...]:
