@@ -9,15 +9,16 @@ an obstacle held void. All shapes of the step are solved in one call
 (:func:`ginn.physics.compliance`), which hands autograd the adjoint gradient.
 
 Continuation: the step width ``w`` and the penalty ``p`` start at ``START_WIDTH`` times the
-problem's length scale and at 1, and reach half the smallest element side (a field that is a
-distance goes from 0.12 to 0.88 across one element) and SIMP's 3 by ``CONTINUATION`` of the run,
-the width geometrically and the penalty linearly; then they stay. With the sharp step and penalty
-from the start only the boundary has a gradient and the shape keeps the topology of its first
-steps, as a level-set method keeps its initial guess's: the double-load cantilever (``cantilever``)
-hung its lower load from a strip along the free edge, compliance 8430 against SIMP's 141. A wide
-step lets every element within a few widths of the shape feel the load, and a penalty of 1 makes
-grey material carry in proportion to its density (the compliance is convex in the densities at
-``p = 1``), as SIMP's uniform grey start and penalty continuation do; the same run ended at 166.5.
+design region's depth (:func:`~ginn.problems.structural.design_depth`, the radius of the largest
+ball in E: half the short side of a rectangle) and at 1, and reach half the smallest element side
+(a field that is a distance goes from 0.12 to 0.88 across one element) and SIMP's 3 by
+``CONTINUATION`` of the run, the width geometrically and the penalty linearly; then they stay.
+With the sharp step and penalty 3 from the first step only the boundary has a gradient and the
+shape keeps the topology of its first steps, as a level-set method keeps its initial guess's. A
+step as wide as half the depth lets every element of E feel the loads, and at ``p = 1`` the
+compliance is convex in the densities, grey material carrying in proportion to its density: the
+start that SIMP's uniform grey field and penalty continuation give it. ``docs/structural.md`` has
+the measurements.
 
 Under a volume bound (``tolerances.volume_fraction.max``) the compliance is that of the shape
 moved onto the bound: the densities are ``sigmoid(-(f - t) / w)`` with the offset ``t <= 0`` at
@@ -54,7 +55,7 @@ from ..extract.sampling import field_dtype_device
 from ..physics import ElementGrid, compliance
 from ..problems.derived import smallest_feature
 from ..problems.problem import Problem
-from ..problems.structural import PENALTY, VOID, structural_grid, structural_solver, void_elements
+from ..problems.structural import PENALTY, VOID, design_depth, structural_grid, structural_solver, void_elements
 from .base import Constraint, Setting, Stage
 from .batch import Batch
 from .verdict import Verdict, Violation
@@ -66,8 +67,9 @@ __all__ = ["Compliance", "ComplianceReport", "ELEMENTS", "CONTINUATION", "START_
 ELEMENTS = "elements"
 #: the share of the run over which the step width and the penalty reach their final values
 CONTINUATION = 0.5
-#: the step width at the start, in units of the problem's length scale (half its longest side)
-START_WIDTH = 0.1
+#: the step width at the start, in units of the design region's depth
+#: (:func:`ginn.problems.structural.design_depth`)
+START_WIDTH = 0.5
 #: the penalty exponent at the start (compliance is convex in the densities at 1)
 START_PENALTY = 1.0
 
@@ -171,6 +173,7 @@ class Compliance(Constraint):
         self.void = torch.as_tensor(void_elements(p, self.grid), device=dev)
         self.centres = torch.as_tensor(self.grid.centres, dtype=setting.dtype, device=dev)
         self.final_width = 0.5 * float(self.grid.h.min())
+        self.start_width = max(START_WIDTH * design_depth(p, self.grid), self.final_width)
         self.width, self.penalty = self.final_width, PENALTY
         self.modulus = float(p.physics.youngs_modulus)
         solid = torch.where(self.void, 0.0, 1.0).to(torch.float64)[None]
@@ -181,7 +184,7 @@ class Compliance(Constraint):
         """``(width, penalty)`` at iteration ``step`` (the continuation of the module docstring)."""
         n = CONTINUATION * self.setting.cfg.training.iterations
         a = min(step / n, 1.0) if n > 0 else 1.0
-        w0 = max(START_WIDTH * self.setting.scale, self.final_width)
+        w0 = self.start_width
         return w0 * (self.final_width / w0) ** a, START_PENALTY + (PENALTY - START_PENALTY) * a
 
     def density(self, f: Tensor) -> Tensor:

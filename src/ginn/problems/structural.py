@@ -12,7 +12,7 @@ the baseline the structural results are measured against.
 The material model of the shapes' elements is SIMP's: modulus ``E (VOID + (1 - VOID) rho^PENALTY)``
 for a density ``rho`` (the reference optimiser, the training term and the report share it).
 
-Public names: :func:`structural_solver`, :func:`structural_grid`, :func:`couple`, :func:`void_elements`,
+Public names: :func:`structural_solver`, :func:`structural_grid`, :func:`couple`, :func:`design_depth`, :func:`void_elements`,
 :func:`simp_reference`, :func:`upsample`, :class:`Reference`, :data:`CELLS`, :data:`VOID`,
 :data:`PENALTY`.
 """
@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import torch
+from scipy.ndimage import distance_transform_edt
 
 from ..errors import SpecError
 from ..geometry.base import Interface, Region
@@ -31,8 +32,8 @@ from ..physics import ElasticitySolver, ElementGrid, SimpResult, simp
 from .derived import smallest_feature
 from .problem import Problem
 
-__all__ = ["structural_solver", "structural_grid", "couple", "void_elements", "simp_reference", "upsample", "Reference", "CELLS",
-           "VOID", "PENALTY"]
+__all__ = ["structural_solver", "structural_grid", "couple", "design_depth", "void_elements", "simp_reference",
+           "upsample", "Reference", "CELLS", "VOID", "PENALTY"]
 
 #: the ersatz material: the modulus of void relative to the solid's
 VOID = 1e-6
@@ -100,6 +101,15 @@ def void_elements(problem: Problem, grid: ElementGrid) -> np.ndarray:
         for o in problem.obstacles:
             void |= o.contains(c).cpu().numpy()
     return void
+
+
+def design_depth(problem: Problem, grid: ElementGrid) -> float:
+    """How deep the design region is on ``grid``: the largest distance from the centre of an element
+    in E to the nearest element outside it or the grid's edge (the radius of the largest ball of
+    elements in E; half the short side of a rectangular E)."""
+    inside = np.pad(~void_elements(problem, grid).reshape(grid.shape), 1, constant_values=False)
+    depth = distance_transform_edt(inside, sampling=[float(h) for h in grid.h])
+    return max(float(depth.max()) - 0.5 * float(grid.h.min()), 0.0)
 
 
 def structural_solver(problem: Problem, grid: ElementGrid, method: str = "auto") -> tuple[ElasticitySolver, np.ndarray]:
