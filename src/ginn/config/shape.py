@@ -36,6 +36,7 @@ class LossesConfig(Strict):
     overhang: LossTerm = LossTerm()
     fillet: LossTerm = LossTerm()
     faces: LossTerm = LossTerm()
+    attachment: LossTerm = LossTerm()
     compliance: LossTerm = LossTerm()
     containment_power: Literal[1, 2] = Field(
         2,

@@ -9,6 +9,7 @@ checkpoint state. :func:`shape_constraints` assembles the terms of a problem;
 """
 
 from .area import Area, AreaVerdict
+from .attachment import Attachment, AttachmentVerdict
 from .base import Constraint, Setting, Stage
 from .batch import Batch, Surface
 from .catalog import describe, problem_verdicts, shape_constraints, verdict_text, verdicts_of
@@ -34,10 +35,10 @@ __all__ = [
     "DOMAIN", "OUTSIDE", "OBSTACLE", "INTERFACE", "BAND", "BUILTIN_SETS",
     "Eikonal", "DesignRegion", "Obstacle", "Interface", "Normal", "MeanCurvature", "Strain", "Diversity",
     "Connectedness", "HoleTargets", "VolumeFraction", "MinThickness", "MinGap", "Overhang", "MinRadius", "Area",
-    "FlatFaces",
+    "FlatFaces", "Attachment",
     "InterfaceVerdict", "VolumeOutside", "Connected", "TopologyTargets", "SymmetryVerdict", "LeastDiversity",
     "VolumeFractionVerdict", "MinThicknessVerdict", "MinGapVerdict", "OverhangVerdict", "MinRadiusVerdict", "AreaVerdict",
-    "FlatFacesVerdict",
+    "FlatFacesVerdict", "AttachmentVerdict",
     "BETTI_METRICS", "containment_floor", "judged_volume_outside",
     "shape_constraints", "problem_verdicts", "verdicts_of", "describe", "verdict_text",
 ]

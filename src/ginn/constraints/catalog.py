@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from ..problems.problem import Problem
 from .area import Area, AreaVerdict
+from .attachment import Attachment, AttachmentVerdict
 from .base import Constraint, Setting
 from .compliance import Compliance, ComplianceReport
 from .connectedness import Connected, Connectedness
@@ -39,6 +40,7 @@ TOLERANCE_TERMS: tuple[tuple[str, type[Constraint], type[Verdict]], ...] = (
 
 BUILTIN_VERDICTS: dict[str, type[Verdict]] = {
     v.name: v for v in (InterfaceVerdict, VolumeOutside, Connected, TopologyTargets, SymmetryVerdict, LeastDiversity,
+                        AttachmentVerdict,
                         *(verdict for _, _, verdict in TOLERANCE_TERMS))}
 
 
@@ -72,7 +74,7 @@ def shape_constraints(setting: Setting) -> list[Constraint]:
         out.append(HoleTargets(setting))
     out += [term(setting) for field, term, _ in TOLERANCE_TERMS if _stated(p, field)]
     if p.physics is not None:
-        out.append(Compliance(setting))
+        out += [Attachment(setting), Compliance(setting)]
     return out
 
 
@@ -92,7 +94,7 @@ def problem_verdicts(problem: Problem) -> list[Verdict]:
         out.append(SymmetryVerdict(problem))
     out += [verdict(problem) for field, _, verdict in TOLERANCE_TERMS if _stated(problem, field)]
     if problem.physics is not None:
-        out.append(ComplianceReport(problem))
+        out += [AttachmentVerdict(problem), ComplianceReport(problem)]
     if problem.tolerances.diversity is not None:
         out.append(LeastDiversity(problem))
     return out

@@ -60,7 +60,8 @@ from .base import Constraint, Setting, Stage
 from .batch import Batch
 from .verdict import Verdict, Violation
 
-__all__ = ["Compliance", "ComplianceReport", "ELEMENTS", "CONTINUATION", "START_WIDTH", "START_PENALTY", "covered",
+__all__ = ["Compliance", "ComplianceReport", "report_grid", "solid_elements", "ELEMENTS", "CONTINUATION", "START_WIDTH",
+           "START_PENALTY", "covered",
            "volume_margin"]
 
 #: the key of the element centres' field values in a step (:meth:`ginn.constraints.batch.Batch.field_at`)
@@ -98,6 +99,25 @@ def volume_margin(share: Tensor, in_design: Tensor) -> Tensor:
     return (crossed / 12.0).sqrt() / in_design.sum().clamp_min(1).to(share.dtype)
 
 
+def report_grid(problem: Problem) -> ElementGrid:
+    """The grid the report solves on: the default element grid refined twice along each axis."""
+    return structural_grid(problem, 0, smallest_feature(problem)).refined(2)
+
+
+def solid_elements(field, z, grid: ElementGrid, void: np.ndarray) -> np.ndarray:
+    """``(n_elements,)`` bool: the elements of ``grid`` whose centre the shape of ``field`` at the
+    latent ``z`` (None: a single shape) holds (``f <= 0``), less the ``void`` ones."""
+    dtype, device = field_dtype_device(field, z if isinstance(z, torch.Tensor) else None)
+    x = torch.as_tensor(grid.centres, dtype=dtype, device=device)
+    out = []
+    with torch.no_grad():
+        for s in range(0, x.shape[0], 65536):
+            xc = x[s: s + 65536]
+            zc = None if z is None else torch.as_tensor(z, dtype=dtype, device=device).reshape(1, -1).expand(xc.shape[0], -1)
+            out.append(fields.evaluate(field, xc, zc, grad=False, create_graph=False).f.reshape(-1).cpu())
+    return (torch.cat(out).numpy() <= 0) & ~void
+
+
 class ComplianceReport(Verdict):
     """The compliance of the thresholded shape on the fine grid (module docstring); never violated."""
 
@@ -112,7 +132,7 @@ class ComplianceReport(Verdict):
         """``(grid, solver, weights, void)`` of the report's grid, built at the first use."""
         if self._fine is None:
             p = self.problem
-            grid = structural_grid(p, 0, smallest_feature(p)).refined(2)
+            grid = report_grid(p)
             solver, w = structural_solver(p, grid)
             self._fine = (grid, solver, w, void_elements(p, grid))
         return self._fine
@@ -120,15 +140,7 @@ class ComplianceReport(Verdict):
     def solid(self, field, z) -> np.ndarray:
         """``(n_elements,)`` bool: the fine grid's elements whose centre the shape holds (``f <= 0``) in E."""
         grid, _, _, void = self.fine()
-        dtype, device = field_dtype_device(field, z if isinstance(z, torch.Tensor) else None)
-        x = torch.as_tensor(grid.centres, dtype=dtype, device=device)
-        out = []
-        with torch.no_grad():
-            for s in range(0, x.shape[0], 65536):
-                xc = x[s: s + 65536]
-                zc = None if z is None else torch.as_tensor(z, dtype=dtype, device=device).reshape(1, -1).expand(xc.shape[0], -1)
-                out.append(fields.evaluate(field, xc, zc, grad=False, create_graph=False).f.reshape(-1).cpu())
-        return (torch.cat(out).numpy() <= 0) & ~void
+        return solid_elements(field, z, grid, void)
 
     def analyse(self, field, z) -> tuple[np.ndarray, torch.Tensor, torch.Tensor]:
         """The thresholded shape solved on the fine grid: its solid elements ``(n_elements,)``, the

@@ -85,6 +85,15 @@ class ElementGrid:
         return np.ravel_multi_index(tuple(corners), self.node_shape)
 
     @cached_property
+    def node_elements(self) -> np.ndarray:
+        """``(n_nodes, 2^dim)`` the elements around each node, ``-1`` past the grid's edge: slot
+        ``k`` is the element whose corner ``k`` the node is."""
+        out = np.full((self.n_nodes, 2**self.dim), -1, dtype=np.int64)
+        for k in range(out.shape[1]):
+            out[self.element_nodes[:, k], k] = np.arange(self.n_elements)
+        return out
+
+    @cached_property
     def element_dofs(self) -> np.ndarray:
         """``(n_elements, dim 2^dim)`` degrees of freedom of each element, corner-major."""
         d = self.dim

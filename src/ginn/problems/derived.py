@@ -155,6 +155,8 @@ RULES: tuple[Rule, ...] = (
          "`1 - n . t` of unit normals: no scale, as the prescribed normals (only with `tolerances.faces`)"),
     Rule("losses.fillet.weight", "1", lambda g: 1.0,
          "`relu(kappa r - 1)`: no scale (only with `tolerances.min_radius`)"),
+    Rule("losses.attachment.weight", "1", lambda g: 1.0,
+         "field values in units of the element size: no scale (only with a `physics` block)"),
     Rule("losses.compliance.weight", "1", lambda g: 1.0,
          "the weighted compliance relative to that of E all solid: no scale (only with a `physics` block)"),
     Rule("losses.containment_power", "1", lambda g: 1,

@@ -13,6 +13,7 @@ The material model of the shapes' elements is SIMP's: modulus ``E (VOID + (1 - V
 for a density ``rho`` (the reference optimiser, the training term and the report share it).
 
 Public names: :func:`structural_solver`, :func:`structural_grid`, :func:`couple`, :func:`design_depth`, :func:`void_elements`,
+:func:`held_nodes`, :func:`held_elements`,
 :func:`simp_reference`, :func:`upsample`, :class:`Reference`, :data:`CELLS`, :data:`VOID`,
 :data:`PENALTY`.
 """
@@ -32,7 +33,8 @@ from ..physics import ElasticitySolver, ElementGrid, SimpResult, simp
 from .derived import smallest_feature
 from .problem import Problem
 
-__all__ = ["structural_solver", "structural_grid", "couple", "design_depth", "void_elements", "simp_reference",
+__all__ = ["structural_solver", "structural_grid", "couple", "design_depth", "void_elements", "held_nodes",
+           "held_elements", "simp_reference",
            "upsample", "Reference", "CELLS", "VOID", "PENALTY"]
 
 #: the ersatz material: the modulus of void relative to the solid's
@@ -89,6 +91,31 @@ def couple(x: np.ndarray, torque: tuple[float, ...]) -> np.ndarray:
     if not np.allclose(J @ omega, M, rtol=1e-6, atol=1e-9 * max(np.abs(M).max(), 1e-300)):
         raise ValueError("its nodes lie on the torque's axis and cannot carry it")
     return np.cross(omega, r)
+
+
+def held_nodes(problem: Problem, grid: ElementGrid) -> np.ndarray:
+    """``(n_nodes,)`` bool: the nodes the shape must hold, those of every load and of every
+    support placed on interfaces (a support on a region is a wall the shape may meet anywhere)."""
+    ph = problem.physics
+    if ph is None:
+        return np.zeros(grid.n_nodes, bool)
+    x = torch.as_tensor(grid.nodes, dtype=torch.float64)
+    reach = 0.5 * float(grid.h.max())
+    held = np.zeros(grid.n_nodes, bool)
+    places = [s.where for s in ph.supports if all(isinstance(w, Interface) for w in s.where)]
+    places += [load.where for case in ph.load_cases for load in case.loads]
+    for where in places:
+        held |= _near(where, x, reach)
+    return held
+
+
+def held_elements(problem: Problem, grid: ElementGrid) -> np.ndarray:
+    """``(n_held, 2^dim)``: for each node of :func:`held_nodes` with an element of E around it, the
+    elements of E around it (``-1``: none in that slot). A node is held when one of them is solid."""
+    around = grid.node_elements[held_nodes(problem, grid)]
+    void = np.append(void_elements(problem, grid), True)  # index -1: past the grid's edge
+    around = np.where(void[around], -1, around)
+    return around[(around >= 0).any(axis=1)]
 
 
 def void_elements(problem: Problem, grid: ElementGrid) -> np.ndarray:

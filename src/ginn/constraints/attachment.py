@@ -1,0 +1,110 @@
+"""Attachment: the shape holds the nodes where its loads act and its interface supports hold it.
+
+A load on nodes the shape leaves void pushes on the ersatz material (modulus 1e-6) and the
+compliance is a million times that of a held load; a support the shape never reaches holds
+nothing. The interface term cannot see this: ``f = 0`` on an interface at the domain's edge is met
+just as well by a shape on the far side of it as by one that carries the load. So every node of
+:func:`ginn.problems.structural.held_nodes` (the nodes of every load, and of every support placed
+on interfaces) must touch a solid element of E.
+
+Loss: over the held nodes and the shapes, the mean of ``relu(m + w / 2) / w``, ``m`` the smallest
+field value at the centres of the node's elements in E (the compliance term's element grid and
+evaluation, :func:`~ginn.problems.structural.held_elements`) and ``w`` half the smallest element
+side (the compliance's final step width): zero once one of them is solid by a quarter element.
+With the sharp step of the late run the compliance has no gradient at an element several elements
+from the boundary, so without it a generative model kept shapes whose boundary met a load pad from
+outside the domain (``docs/structural.md``).
+
+Verdict (``attachment``): on the report's grid (the default element grid refined twice), the
+share of the held nodes that no solid element (``f <= 0`` at its centre) of E touches,
+``unheld_nodes``, must be 0.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from ..problems.derived import smallest_feature
+from ..problems.problem import Problem
+from ..problems.structural import held_elements, structural_grid, void_elements
+from .base import Constraint, Setting, Stage
+from .batch import Batch
+from .compliance import ELEMENTS, report_grid, solid_elements
+from .verdict import Verdict, Violation, number_text
+
+__all__ = ["Attachment", "AttachmentVerdict"]
+
+
+class AttachmentVerdict(Verdict):
+    """Every held node touches the thresholded shape on the report's grid (module docstring)."""
+
+    name = "attachment"
+
+    def __init__(self, problem: Problem):
+        super().__init__(problem)
+        self.metrics = ("unheld_nodes",)
+        self._grid: tuple | None = None
+
+    def grid(self) -> tuple:
+        """``(grid, void, held)`` of the report's grid, built at the first use."""
+        if self._grid is None:
+            grid = report_grid(self.problem)
+            self._grid = (grid, void_elements(self.problem, grid), held_elements(self.problem, grid))
+        return self._grid
+
+    def measure(self, shape, context, field, z) -> dict[str, Any]:
+        grid, void, held = self.grid()
+        if held.shape[0] == 0:
+            return {"unheld_nodes": None}
+        solid = np.append(solid_elements(field, z, grid, void), False)  # index -1: no element
+        return {"unheld_nodes": float(1.0 - solid[held].any(axis=1).mean())}
+
+    def violation(self, metrics: Mapping) -> Violation | None:
+        v = metrics.get("unheld_nodes")
+        return None if v is None or v <= 0 else Violation(float(v), 0.0)
+
+    def ratio(self, metrics: Mapping) -> float | None:
+        """0 when every node is held, else 1 plus the unheld share (above 1: violated)."""
+        v = metrics.get("unheld_nodes")
+        if v is None:
+            return None
+        return 0.0 if v <= 0 else 1.0 + float(v)
+
+    @classmethod
+    def describe(cls, v: Violation) -> str:
+        return f"attachment: {number_text(v.value)} of the load and support nodes off the shape"
+
+
+class Attachment(Constraint):
+    """The held nodes touch solid elements (module docstring)."""
+
+    name = "attachment"
+    stage = Stage.FIELD
+
+    def __init__(self, setting: Setting):
+        super().__init__(setting)
+        p, dev = setting.problem, setting.device
+        grid = structural_grid(p, setting.cfg.structural.cells, smallest_feature(p))
+        self.centres = torch.as_tensor(grid.centres, dtype=setting.dtype, device=dev)
+        held = held_elements(p, grid)
+        self.elements = torch.as_tensor(np.maximum(held, 0), device=dev)  # (n_held, 2^d)
+        self.present = torch.as_tensor(held >= 0, device=dev)
+        self.width = 0.5 * float(grid.h.min())
+        self._verdict = AttachmentVerdict(p)
+
+    @property
+    def verdict(self) -> AttachmentVerdict:
+        return self._verdict
+
+    def loss(self, batch: Batch) -> Tensor | None:
+        if self.elements.shape[0] == 0:
+            return None
+        f = batch.field_at(ELEMENTS, self.centres)  # (S, n_elements)
+        around = f[:, self.elements]  # (S, n_held, 2^d)
+        m = torch.where(self.present, around, torch.full_like(around, torch.inf)).amin(dim=-1)
+        return torch.relu(m + 0.5 * self.width).mean() / self.width
