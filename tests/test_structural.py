@@ -9,12 +9,24 @@ import yaml
 
 from ginn import runs
 from ginn.cli import main
+from ginn.constraints.attachment import Attachment, AttachmentVerdict
 from ginn.constraints.base import Setting
 from ginn.constraints.compliance import START_PENALTY, START_WIDTH, Compliance, ComplianceReport, covered, volume_margin
 from ginn.errors import SpecError
+from ginn.eval.feasibility import FeasibilityCheck
 from ginn.physics import ElementGrid
 from ginn.problems import get_spec, validate_spec
-from ginn.problems.structural import VOID, couple, design_depth, simp_reference, structural_grid, structural_solver, upsample
+from ginn.problems.structural import (
+    VOID,
+    couple,
+    design_depth,
+    held_elements,
+    held_nodes,
+    simp_reference,
+    structural_grid,
+    structural_solver,
+    upsample,
+)
 
 BAR = {
     "name": "bar",
@@ -167,8 +179,8 @@ def test_report_of_a_solid_bar_against_its_closed_form():
     assert rep.violation(m) is None and rep.ratio(m) is None  # reported, never violated
 
 
-def _setting(problem="mbb", spec=None):
-    spec_obj, cfg = runs.resolve(problem if spec is None else spec, None, {}, sets=["structural.cells=30"])
+def _setting(problem="mbb", spec=None, cells=30):
+    spec_obj, cfg = runs.resolve(problem if spec is None else spec, None, {}, sets=[f"structural.cells={cells}"])
     return Setting(spec_obj.build(), cfg, torch.device("cpu"), torch.float64)
 
 
@@ -245,6 +257,73 @@ def test_continuation_from_a_wide_step_and_penalty_one():
     c.width, c.penalty = c.schedule(0)
     rho = torch.tensor([[0.5]], dtype=torch.float64)
     assert float(c.moduli(rho)) == pytest.approx(VOID + (1 - VOID) * 0.5)
+
+
+def test_elements_around_each_node():
+    grid = ElementGrid((0.0, 0.0, 0.0), (1.0, 1.0, 1.0), (3, 2, 4))
+    around = grid.node_elements
+    assert around.shape == (grid.n_nodes, 8)
+    k = np.nonzero(around >= 0)
+    assert np.array_equal(grid.element_nodes[around[k], k[1]], k[0])  # the node is that corner of the element
+    assert np.bincount(around[around >= 0]).tolist() == [8] * grid.n_elements
+    count = (around >= 0).sum(axis=1).reshape(grid.node_shape)
+    assert count[0, 0, 0] == 1 and count[1, 0, 0] == 2 and count[1, 1, 0] == 4 and count[1, 1, 1] == 8
+
+
+class _Field:
+    """A stand-in for a step's batch: the given field values at the element centres."""
+
+    def __init__(self, f):
+        self.f = f
+
+    def field_at(self, key, x):
+        return self.f
+
+
+def test_attachment_holds_the_load_pads_not_the_clamped_wall():
+    """The cantilever's pads at x = 1.5, y in [0.1, 0.2] and [0.8, 0.9]: 7 nodes each on the
+    90 x 60 grid (spacing 1/60, reach half of it), each with 2 elements in E; the clamped wall (a
+    region) is not held. Loss ``relu(m + w/2) / w``, ``w = h / 2``; the verdict's share of nodes
+    off the thresholded shape on the grid refined twice."""
+    setting = _setting("cantilever", cells=0)
+    p = setting.problem
+    grid = structural_grid(p)
+    held = held_nodes(p, grid)
+    x = grid.nodes[held]
+    assert held.sum() == 14 and np.allclose(x[:, 0], 1.5)
+    ys = np.sort(x[:, 1]) * 60
+    assert np.allclose(ys, [6, 7, 8, 9, 10, 11, 12, 48, 49, 50, 51, 52, 53, 54])
+    around = held_elements(p, grid)
+    assert around.shape == (14, 4) and (around >= 0).sum() == 28
+    assert np.allclose(grid.centres[around[around >= 0], 0], 1.5 - 1 / 120)
+    term = Attachment(setting)
+    h = 1 / 60
+    xc = torch.as_tensor(grid.centres)
+    loss = term.loss(_Field((xc[:, 0] - 1.5 + h)[None]))  # solid up to one element short: m = h / 2
+    assert float(loss) == pytest.approx((h / 2 + h / 4) / (h / 2), rel=1e-9)
+    assert float(term.loss(_Field((xc[:, 0] - 1.6)[None]))) == 0.0
+    low = term.loss(_Field(torch.where(xc[:, 1] < 0.5, xc[:, 0] - 1.6, xc[:, 0] - 1.5 + h)[None]))
+    assert float(low) == pytest.approx(0.5 * float(loss), rel=1e-9)  # one pad held of two
+    v = AttachmentVerdict(p)
+    m = v.measure(None, None, lambda x, z=None: x[:, 0] - 1.6, None)
+    assert m == {"unheld_nodes": 0.0} and v.violation(m) is None and v.ratio(m) == 0.0
+    m = v.measure(None, None, lambda x, z=None: torch.where(x[:, 1] < 0.5, x[:, 0] - 1.6, x[:, 0] - 1.4), None)
+    assert m["unheld_nodes"] == pytest.approx(0.5) and v.ratio(m) == pytest.approx(1.5)
+    assert v.violation(m).value == pytest.approx(0.5) and "0.5 of the load" in v.describe(v.violation(m))
+
+
+def test_feasibility_checks_leave_the_compliance_report_to_eval():
+    """The checks during training, at held-out codes and in the explorer judge; the report's solve
+    on the fine grid is ginn eval's alone. The attachment is judged."""
+    p = _spec().build()
+    check = FeasibilityCheck(p, 64)
+    m, _ = check.shape(lambda x, z=None: x[:, 1] - 2.0, None)  # all of the domain
+    assert "compliance" not in m.extra and m.extra["unheld_nodes"] == 0.0
+    m, _ = check.shape(lambda x, z=None: x[:, 1] - 0.6, None)  # the end nodes above y = 0.6 + h off it
+    assert abs(m.extra["unheld_nodes"] - 0.4) < 1 / 44
+    m, _ = check.shape(lambda x, z=None: x[:, 0] - 3.0, None)  # the supported end held, the loaded one not
+    assert m.extra["unheld_nodes"] == 0.5
+    assert [v.name for v in check.verdicts if not v.judges] == ["compliance"]
 
 
 def test_simp_reference_of_the_mbb_problem():

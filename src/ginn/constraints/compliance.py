@@ -122,6 +122,7 @@ class ComplianceReport(Verdict):
     """The compliance of the thresholded shape on the fine grid (module docstring); never violated."""
 
     name = "compliance"
+    judges = False  # a solve on the fine grid per shape: ginn eval's, not the checks' during training
 
     def __init__(self, problem: Problem):
         super().__init__(problem)

@@ -60,12 +60,15 @@ class Verdict(abc.ABC):
         problem: the problem whose tolerances set the bound.
 
     Class attributes: ``name`` (the constraint's name in the verdict and in
-    ``metrics.json``), ``on_set`` (judges the set, not each shape). Instances: ``metrics``, the
-    metric names it reads.
+    ``metrics.json``), ``on_set`` (judges the set, not each shape), ``judges`` (False for a report
+    that never finds a shape infeasible: ``ginn eval`` measures it, the feasibility checks of
+    :class:`ginn.eval.feasibility.FeasibilityCheck` do not). Instances: ``metrics``, the metric
+    names it reads.
     """
 
     name: ClassVar[str]
     on_set: ClassVar[bool] = False
+    judges: ClassVar[bool] = True
 
     def __init__(self, problem: Problem):
         self.problem = problem

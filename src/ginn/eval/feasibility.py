@@ -160,7 +160,9 @@ class FeasibilityCheck:
         problem: the problem.
         resolution: grid cells along the longest axis of the domain.
         seed: of the interface samples.
-        verdicts: what to judge (None: :func:`ginn.constraints.problem_verdicts`).
+        verdicts: what to judge (None: :func:`ginn.constraints.problem_verdicts`); the reports
+            among them (:attr:`~ginn.constraints.Verdict.judges` False: the compliance's solve on
+            its fine grid) are not measured, ``ginn eval`` measures them.
         heldout: codes ``(H, k)`` judged beside the shapes of each call (a generative model's
             latent set beyond its reported codes: the summary's ``heldout``), or None.
     """
@@ -170,7 +172,8 @@ class FeasibilityCheck:
         self.problem = problem
         self.resolution = resolution
         self.verdicts = _verdicts(problem, verdicts)
-        self.metrics = feasibility_metrics(problem, self.verdicts)
+        self.judging = [v for v in self.verdicts if v.judges]  # the reports are left to ginn eval
+        self.metrics = feasibility_metrics(problem, self.judging)
         self.context: MetricContext = prepare_context(problem, resolution, n_design_boundary_samples=0, seed=seed)
         self.seed = seed
         self.heldout = heldout
@@ -178,7 +181,7 @@ class FeasibilityCheck:
     def shape(self, field: Field, z: Tensor | None) -> tuple[ShapeMetrics, ExtractedShape]:
         """The metrics the verdicts read of the shape ``{field(., z) <= 0}`` and the extracted shape."""
         sh = extract_shape(field, z, self.context.grid)
-        m = measured(shape_metrics(sh, self.context, field, z, only=self.metrics), self.verdicts, sh, self.context, field, z)
+        m = measured(shape_metrics(sh, self.context, field, z, only=self.metrics), self.judging, sh, self.context, field, z)
         return m, sh
 
     def latents(self, field: Field, Z: Tensor) -> FeasibilitySummary:
