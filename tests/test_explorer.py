@@ -168,3 +168,31 @@ def test_a_problem_with_manufacturing_tolerances_marks_them_in_every_frame(tmp_p
     plain = write_explorer(field, None, validate_spec({**spec, "tolerances": {}}).build(), tmp_path / "p.html",
                            resolution=128).read_text()
     assert all(t.get("name") != "thin, narrow or overhanging" for t in _figure(plain)[0])
+
+
+def test_a_structural_problem_shows_the_strain_energy_and_the_compliance(tmp_path):
+    """The bar of tests/test_structural.py all solid: stress 1 along it (unit force over unit height),
+    strain-energy density s^2 / (2 E) = 0.25 (E = 2) and compliance F^2 L / (E A) = 2, within the
+    concentrations at the end nodes."""
+    from ginn.fields import as_field
+    from ginn.problems import validate_spec
+    from ginn.viz.explorer import write_explorer
+
+    bar = {"name": "bar", "tolerances": {"volume_fraction": {"max": 0.5}},
+           "geometry": {"dim": 2, "domain": {"lo": [0, 0], "hi": [4, 1]},
+                        "interfaces": [{"type": "segment", "a": [0, 0], "b": [0, 1]}, {"type": "segment", "a": [4, 0], "b": [4, 1]}]},
+           "physics": {"material": {"youngs_modulus": 2.0, "poisson_ratio": 0.3},
+                       "supports": [{"interface": 0, "fix": ["x"]},
+                                    {"region": {"type": "rectangle", "lo": [-1, -1], "hi": [0.01, 0.01]}, "fix": ["y"]}],
+                       "loads": [{"interface": 1, "force": [1.0, 0.0]}]}}
+    field = as_field(lambda x: x[:, 1] - 2.0)
+    html = write_explorer(field, None, validate_spec(bar).build(), tmp_path / "s.html", resolution=64).read_text()
+    data, layout = _figure(html)
+    heat = [t for t in data if t.get("name") == "strain-energy density"]
+    assert len(heat) == 1 and heat[0]["type"] == "heatmap"
+    z = heat[0]["z"]
+    zs = np.frombuffer(base64.b64decode(z["bdata"]), dtype=z["dtype"]) if isinstance(z, dict) else np.asarray(z, float)
+    assert zs.size == 90 * 22 and np.isfinite(zs).all()  # the default 90 x 22 grid, all solid
+    assert abs(float(np.median(zs)) - np.log10(0.25)) < 0.01
+    c = float(re.search(r"compliance ([0-9.]+)", layout["annotations"][0]["text"]).group(1))
+    assert c == pytest.approx(2.0, rel=0.01)

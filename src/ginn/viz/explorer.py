@@ -13,7 +13,12 @@ principal directions. For each value the page shows
 * 3D: the extracted mesh, the design region as a translucent surface and the interface samples
   (Plateau's problem: also the reference minimal surface, translucent);
 
-and beside it the shape's feasibility verdict (``ginn.eval.feasibility``) with its CD1, volume
+A 2D structural problem (``physics:``) also shows each position's strain-energy density over the
+shape as :class:`ginn.constraints.compliance.ComplianceReport` solves it (thresholded on the fine
+element grid, averaged over blocks of 2 x 2 elements for the page, logarithmic colours on one
+scale for every position) and its compliance beside the verdict.
+
+Beside the picture: the shape's feasibility verdict (``ginn.eval.feasibility``) with its CD1, volume
 outside E and number of pieces: with a ``judge`` (what shape runs pass: ``ginn eval``'s,
 :class:`ginn.eval.latent_space.LatentJudge`) the verdict ``ginn eval`` gives that code, else an
 estimate on the picture's own grid, marked as such.
@@ -33,6 +38,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from ..constraints.compliance import ComplianceReport
 from ..eval.feasibility import FEASIBILITY_METRICS, FeasibilityCheck, judged_volume_outside, shape_violations, verdict_text
 from ..eval.metrics import extract_shape, prepare_context, shape_metrics
 from ..eval.reference.minimal_surface import plateau_reference
@@ -43,7 +49,8 @@ from ..fields import Field
 from ..problems.problem import Problem
 from .manufacturing import THIN_COLOR, has_marks, violation_marks
 
-__all__ = ["ExplorerLatents", "explorer_latents", "write_explorer", "write_page", "add_sliders", "note", "EXPLORER_RESOLUTION"]
+__all__ = ["ExplorerLatents", "explorer_latents", "write_explorer", "strain_energy", "write_page", "add_sliders", "note",
+           "EXPLORER_RESOLUTION"]
 
 #: Grid cells along the longest domain axis of the pictures (and of the metrics beside them).
 EXPLORER_RESOLUTION = {2: 128, 3: 40}
@@ -204,15 +211,18 @@ def _problem_traces(problem: Problem, resolution: int) -> list:
     return traces
 
 
-def _shape_trace(shape, grid, d: int):
+def _shape_trace(shape, grid, d: int, filled: bool = True):
+    """The shape: in 2D its filled outline (``filled`` False: the outline alone, over a map beneath
+    it), in 3D its mesh."""
     import plotly.graph_objects as go
 
     if d == 2:
         # closed outlines (the values padded with "outside"); holes run the other way round, so
         # the nonzero fill rule of one SVG path leaves them empty
         x, y = _lines(_contours(np.pad(shape.values, 1, constant_values=1.0), grid, pad=1), 2)
-        return go.Scatter(x=x, y=y, mode="lines", fill="toself", fillcolor=SHAPE_COLOR, opacity=0.85,
-                          line={"color": "#1f4e79", "width": 1}, name="shape", hoverinfo="skip")
+        fill = {"fill": "toself", "fillcolor": SHAPE_COLOR, "opacity": 0.85} if filled else {}
+        return go.Scatter(x=x, y=y, mode="lines", line={"color": "#1f4e79", "width": 1}, name="shape", hoverinfo="skip",
+                          **fill)
     b = shape.boundary
     V, F = b.vertices.astype(np.float32), b.elements.astype(np.int32)
     if len(F) == 0:
@@ -220,6 +230,36 @@ def _shape_trace(shape, grid, d: int):
     return go.Mesh3d(x=V[:, 0], y=V[:, 1], z=V[:, 2], i=F[:, 0], j=F[:, 1], k=F[:, 2], color=SHAPE_COLOR,
                      flatshading=False, lighting={"ambient": 0.45, "diffuse": 0.7, "specular": 0.1}, name="shape",
                      hoverinfo="skip")
+
+
+def strain_energy(report: ComplianceReport, field: Field, z: Tensor | None) -> tuple[np.ndarray, float]:
+    """The weighted strain-energy density of the shape at ``z`` on the report's fine grid averaged
+    over blocks of 2 x 2 elements, ``(n_x / 2, n_y / 2)`` (NaN where the block has no solid), and the
+    shape's weighted compliance."""
+    grid, solver, w, _ = report.fine()
+    solid, U, density = report.analyse(field, z)
+    c = float(w @ solver.work(U[None])[0].numpy())
+    energy = (torch.as_tensor(w)[:, None] * density).sum(0).numpy()
+    nx, ny = grid.shape
+    e = np.where(solid, energy, 0.0).reshape(nx // 2, 2, ny // 2, 2).sum(axis=(1, 3))
+    k = solid.reshape(nx // 2, 2, ny // 2, 2).sum(axis=(1, 3))
+    return np.where(k > 0, e / np.maximum(k, 1), np.nan), c
+
+
+def _energy_trace(energy: np.ndarray, problem: Problem, scale: tuple[float, float]):
+    """A heatmap of ``log10`` of a block-averaged strain-energy density (:func:`strain_energy`) over
+    the domain, void transparent, on the colour range ``scale``."""
+    import plotly.graph_objects as go
+
+    lo, hi = problem.domain.lo, problem.domain.hi
+    nx, ny = energy.shape
+    x = lo[0] + (np.arange(nx) + 0.5) * (hi[0] - lo[0]) / nx
+    y = lo[1] + (np.arange(ny) + 0.5) * (hi[1] - lo[1]) / ny
+    with np.errstate(divide="ignore"):
+        z = np.where(energy > 0, np.log10(np.where(energy > 0, energy, 1.0)), np.nan).T.astype(np.float32)
+    return go.Heatmap(x=x, y=y, z=z, zmin=scale[0], zmax=scale[1], colorscale="Inferno", reversescale=True,
+                      colorbar={"title": {"text": "log10 strain-energy density"}, "x": 1.0, "len": 0.5, "y": 0.25},
+                      name="strain-energy density", hoverinfo="skip")
 
 
 def _marks_trace(problem: Problem, shape, grid):
@@ -301,6 +341,8 @@ def write_explorer(field: Field, Z: Tensor | None, problem: Problem, path: str |
     dt = next(field.parameters()).dtype if isinstance(field, torch.nn.Module) else torch.float32
     frames, names, shapes = [], [], []
     marked = d == 2 and has_marks(problem)
+    report = ComplianceReport(problem) if d == 2 and problem.physics is not None else None
+    energies: list[np.ndarray] = []
     for idx, z in enumerate(lat.codes):
         zz = None if z is None else z.to(dev, dt)
         shape = extract_shape(field, zz, ctx.grid)
@@ -311,12 +353,24 @@ def write_explorer(field: Field, Z: Tensor | None, problem: Problem, path: str |
             m = judge.shape(field, zz)[0]
             how = f"as ginn eval judges it ({judge.resolution} cells)"
         name = str(idx) if lat.grid is None else f"{idx // lat.grid[1]},{idx % lat.grid[1]}"
-        text = f"<b>latent {lat.labels[idx]}</b><br>{_verdict(m, problem, judge)}<br><i>{how}</i>"
-        data = [_shape_trace(shape, ctx.grid, d)] + ([_marks_trace(problem, shape, ctx.grid)] if marked else [])
-        frames.append(go.Frame(name=name, data=data, traces=list(range(len(data))),
-                               layout={"annotations": [note(text)]}))
+        verdict = _verdict(m, problem, judge)
+        if report is not None:
+            energy, c = strain_energy(report, field, zz)
+            energies.append(energy)
+            verdict += f"<br>compliance {c:.4g} (solved on the fine element grid)"
+        text = f"<b>latent {lat.labels[idx]}</b><br>{verdict}<br><i>{how}</i>"
+        data = [_shape_trace(shape, ctx.grid, d, filled=report is None)]
+        data += [_marks_trace(problem, shape, ctx.grid)] if marked else []
+        frames.append(go.Frame(name=name, data=data, layout={"annotations": [note(text)]}))
         names.append(name)
         shapes.append(shape)
+    if energies:
+        logs = np.log10(np.concatenate([e[np.isfinite(e) & (e > 0)] for e in energies]))
+        scale = (float(np.percentile(logs, 1)), float(logs.max())) if logs.size else (0.0, 1.0)
+        for frame, e in zip(frames, energies):
+            frame.data = (*frame.data, _energy_trace(e, problem, scale))
+    for frame in frames:
+        frame.traces = list(range(len(frame.data)))
     fig = go.Figure(data=[*frames[0].data, *_problem_traces(problem, res)], frames=frames if len(frames) > 1 else None)
     lo, hi = problem.domain.lo, problem.domain.hi
     layout: dict = {"title": {"text": title}, "annotations": [note(frames[0].layout.annotations[0].text)],
