@@ -406,3 +406,35 @@ def test_load_cases_weighted_and_quadratic_in_the_force():
     c1, c2 = m["compliance_cases"]
     assert c2 == pytest.approx(4 * c1, rel=1e-9)
     assert m["compliance"] == pytest.approx(c1 + 0.5 * c2, rel=1e-12)
+
+
+def test_coloured_meshes_of_a_3d_bar_in_tension(tmp_path):
+    """An 8 x 1 x 1 bar all solid, pulled by a unit force on its free end: stress 1, strain-energy
+    density s^2 / (2 E) = 0.25 (E = 2) away from the ends, compliance F^2 L / (E A) = 4. The PLY
+    carries a colour per vertex; the vertices' densities have the uniform value as their median."""
+    import trimesh
+
+    from ginn.fields import as_field
+    from ginn.viz.structural import strain_energy_meshes, vertex_energy
+
+    spec = {"name": "bar3", "tolerances": {"volume_fraction": {"max": 0.5}},
+            "geometry": {"dim": 3, "domain": {"lo": [0, 0, 0], "hi": [8, 1, 1]}},
+            "physics": {"material": {"youngs_modulus": 2.0, "poisson_ratio": 0.3},
+                        "supports": [{"region": {"type": "box", "lo": [-1, -1, -1], "hi": [0, 2, 2]}, "fix": ["x"]},
+                                     {"region": {"type": "box", "lo": [-1, -1, -1], "hi": [0.01, 0.01, 0.01]},
+                                      "fix": ["y", "z"]},
+                                     {"region": {"type": "box", "lo": [-1, 0.99, -1], "hi": [0.01, 2, 0.01]}, "fix": ["z"]}],
+                        "loads": [{"region": {"type": "box", "lo": [8, -1, -1], "hi": [9, 2, 2]}, "force": [1.0, 0.0, 0.0]}]}}
+    p = validate_spec(spec).build()
+    field = as_field(lambda x: x[:, 1] - 2.0)
+    rep = ComplianceReport(p)
+    paths = strain_energy_meshes(field, None, p, tmp_path, 48, report=rep)
+    assert [q.name for q in paths] == ["strain_energy.ply", "strain_energy.png"]
+    mesh = trimesh.load(paths[0], process=False)
+    colours = np.asarray(mesh.visual.vertex_colors)
+    assert colours.shape == (len(mesh.vertices), 4) and len(np.unique(colours[:, :3], axis=0)) > 1
+    solid, U, density = rep.analyse(field, None)
+
+    e = vertex_energy(rep, solid, density[0].numpy(), np.asarray(mesh.vertices))
+    assert np.isfinite(e).all() and float(np.median(e)) == pytest.approx(0.25, rel=0.02)
+    assert float(rep.fine()[1].work(U[None])[0, 0]) == pytest.approx(4.0, rel=0.02)

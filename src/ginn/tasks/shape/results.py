@@ -23,7 +23,7 @@ from ...train.task import Results
 from ...viz.explorer import write_explorer
 from ...viz.plateau import write_plateau_results
 from ...viz.plot import plot_run, save_shape_figure
-from ...viz.structural import plot_strain_energy
+from ...viz.structural import plot_strain_energy, strain_energy_meshes
 
 if TYPE_CHECKING:
     from .task import ShapeTask
@@ -68,8 +68,8 @@ class ShapeResults(Results):
     def finalize(self, model: nn.Module, run_dir: Path) -> list[Path]:
         """``shapes/`` (2D: contour polylines and drawings per shape; 3D: one STL per shape),
         ``figures/`` (shapes, superposition and interpolation in 2D, views in 3D, loss curves, the
-        latent-space explorer ``explorer.html``, the strain-energy density of a 2D structural
-        problem ``strain_energy.png``) and, for a problem with a minimal-surface reference,
+        latent-space explorer ``explorer.html``, the strain-energy density of a structural
+        problem: ``strain_energy.png``, in 3D also a coloured mesh per shape) and, for a problem with a minimal-surface reference,
         ``plateau/``."""
         run_dir = Path(run_dir)
         model.eval()
@@ -81,6 +81,8 @@ class ShapeResults(Results):
             paths += write_plateau_results(model, self.problem, run_dir, resolution=res)
         if self.problem.physics is not None and self.problem.dim == 2:
             paths.append(plot_strain_energy(model, self.task.Z, self.problem, run_dir / "figures" / "strain_energy.png"))
+        elif self.problem.physics is not None:
+            paths += strain_energy_meshes(model, self.task.Z, self.problem, run_dir / "figures", res)
         return paths
 
     def evaluate(self, model: nn.Module, resolution: int | None = None, out_dir: Path | None = None,
