@@ -283,8 +283,9 @@ class _Field:
 def test_attachment_holds_the_load_pads_not_the_clamped_wall():
     """The cantilever's pads at x = 1.5, y in [0.1, 0.2] and [0.8, 0.9]: 7 nodes each on the
     90 x 60 grid (spacing 1/60, reach half of it), each with 2 elements in E; the clamped wall (a
-    region) is not held. Loss ``relu(m + w/2) / w``, ``w = h / 2``; the verdict's share of nodes
-    off the thresholded shape on the grid refined twice."""
+    region) is not held. The term reads the report's grid (twice as fine: 13 nodes a pad) as its
+    verdict does. Loss ``relu(m + w/2) / w``, ``w = h / 2``; the verdict's share of nodes off the
+    thresholded shape."""
     setting = _setting("cantilever", cells=0)
     p = setting.problem
     grid = structural_grid(p)
@@ -297,19 +298,26 @@ def test_attachment_holds_the_load_pads_not_the_clamped_wall():
     assert around.shape == (14, 4) and (around >= 0).sum() == 28
     assert np.allclose(grid.centres[around[around >= 0], 0], 1.5 - 1 / 120)
     term = Attachment(setting)
-    h = 1 / 60
-    xc = torch.as_tensor(grid.centres)
+    h = 1 / 120
+    assert term.elements.shape == (26, 4) and int(term.present.sum()) == 52 and term.points.shape == (28, 2)
+    assert np.allclose(term.points[:, 0], 1.5 - h / 2)  # the report grid's centres by the pads
+    xc = term.points
     loss = term.loss(_Field((xc[:, 0] - 1.5 + h)[None]))  # solid up to one element short: m = h / 2
     assert float(loss) == pytest.approx((h / 2 + h / 4) / (h / 2), rel=1e-9)
     assert float(term.loss(_Field((xc[:, 0] - 1.6)[None]))) == 0.0
     low = term.loss(_Field(torch.where(xc[:, 1] < 0.5, xc[:, 0] - 1.6, xc[:, 0] - 1.5 + h)[None]))
     assert float(low) == pytest.approx(0.5 * float(loss), rel=1e-9)  # one pad held of two
+    # a shape that stops a quarter of a pad short of its lower end: 3 of its 13 nodes unheld
+    short = term.loss(_Field(torch.where(xc[:, 1] < 0.125, xc[:, 0] - 1.5 + h, xc[:, 0] - 1.6)[None]))
+    assert float(short) == pytest.approx(3 / 26 * (h / 2 + h / 4) / (h / 2), rel=1e-9)
     v = AttachmentVerdict(p)
     m = v.measure(None, None, lambda x, z=None: x[:, 0] - 1.6, None)
     assert m == {"unheld_nodes": 0.0} and v.violation(m) is None and v.ratio(m) == 0.0
     m = v.measure(None, None, lambda x, z=None: torch.where(x[:, 1] < 0.5, x[:, 0] - 1.6, x[:, 0] - 1.4), None)
     assert m["unheld_nodes"] == pytest.approx(0.5) and v.ratio(m) == pytest.approx(1.5)
     assert v.violation(m).value == pytest.approx(0.5) and "0.5 of the load" in v.describe(v.violation(m))
+    m = v.measure(None, None, lambda x, z=None: torch.where(x[:, 1] < 0.125, x[:, 0] - 1.4, x[:, 0] - 1.6), None)
+    assert m["unheld_nodes"] == pytest.approx(3 / 26)
 
 
 def test_feasibility_checks_leave_the_compliance_report_to_eval():

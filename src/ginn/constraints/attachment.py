@@ -8,12 +8,14 @@ just as well by a shape on the far side of it as by one that carries the load. S
 on interfaces) must touch a solid element of E.
 
 Loss: over the held nodes and the shapes, the mean of ``relu(m + w / 2) / w``, ``m`` the smallest
-field value at the centres of the node's elements in E (the compliance term's element grid and
-evaluation, :func:`~ginn.problems.structural.held_elements`) and ``w`` half the smallest element
-side (the compliance's final step width): zero once one of them is solid by a quarter element.
-With the sharp step of the late run the compliance has no gradient at an element several elements
-from the boundary, so without it a generative model kept shapes whose boundary met a load pad from
-outside the domain (``docs/structural.md``).
+field value at the centres of the node's elements in E and ``w`` half their smallest side: zero
+once one of them is solid by a quarter element. The nodes and elements are those of the verdict's
+grid (below), so the term asks for what the verdict judges: on the training grid, whose element
+centres lie twice as far from a node, a shape rounded off at a pad's end held the training grid's
+elements and left the end nodes of the report grid on void (``docs/structural.md``). With the sharp
+step of the late run the compliance has no gradient at an element several elements from the
+boundary, so without the term a generative model kept shapes whose boundary met a load pad from
+outside the domain.
 
 Verdict (``attachment``): on the report's grid (the default element grid refined twice), the
 share of the held nodes that no solid element (``f <= 0`` at its centre) of E touches,
@@ -29,15 +31,18 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from ..problems.derived import smallest_feature
 from ..problems.problem import Problem
-from ..problems.structural import held_elements, structural_grid, void_elements
+from ..problems.structural import held_elements, void_elements
 from .base import Constraint, Setting, Stage
 from .batch import Batch
-from .compliance import ELEMENTS, report_grid, solid_elements
+from .compliance import report_grid, solid_elements
 from .verdict import Verdict, Violation, number_text
 
-__all__ = ["Attachment", "AttachmentVerdict"]
+__all__ = ["Attachment", "AttachmentVerdict", "POINTS"]
+
+#: the key of the field values at the held nodes' element centres in a step
+#: (:meth:`ginn.constraints.batch.Batch.field_at`)
+POINTS = "attachment"
 
 
 class AttachmentVerdict(Verdict):
@@ -89,10 +94,11 @@ class Attachment(Constraint):
     def __init__(self, setting: Setting):
         super().__init__(setting)
         p, dev = setting.problem, setting.device
-        grid = structural_grid(p, setting.cfg.structural.cells, smallest_feature(p))
-        self.centres = torch.as_tensor(grid.centres, dtype=setting.dtype, device=dev)
-        held = held_elements(p, grid)
-        self.elements = torch.as_tensor(np.maximum(held, 0), device=dev)  # (n_held, 2^d)
+        grid = report_grid(p)
+        held = held_elements(p, grid)  # (n_held, 2^d), -1: none
+        used = np.unique(held[held >= 0])
+        self.points = torch.as_tensor(grid.centres[used], dtype=setting.dtype, device=dev)  # (n_used, d)
+        self.elements = torch.as_tensor(np.searchsorted(used, np.maximum(held, 0)), device=dev)  # into points
         self.present = torch.as_tensor(held >= 0, device=dev)
         self.width = 0.5 * float(grid.h.min())
         self._verdict = AttachmentVerdict(p)
@@ -104,7 +110,7 @@ class Attachment(Constraint):
     def loss(self, batch: Batch) -> Tensor | None:
         if self.elements.shape[0] == 0:
             return None
-        f = batch.field_at(ELEMENTS, self.centres)  # (S, n_elements)
+        f = batch.field_at(POINTS, self.points)  # (S, n_used)
         around = f[:, self.elements]  # (S, n_held, 2^d)
         m = torch.where(self.present, around, torch.full_like(around, torch.inf)).amin(dim=-1)
         return torch.relu(m + 0.5 * self.width).mean() / self.width

@@ -7,16 +7,18 @@ fixed degrees of freedom are removed (zero displacement there); a load case is a
 forces. Two methods solve ``K u = f``:
 
 * ``direct``: the assembled sparse matrix of the free degrees of freedom (one scatter of the element
-  matrices into a precomputed CSR pattern), factorised once per shape by SuperLU (SciPy, minimum
-  degree ordering of ``A^T + A``) and solved for every load case; the shapes of a batch on as many
-  threads as torch uses (SuperLU releases the GIL; each shape's solve is the same on any count);
+  matrices into a precomputed CSR pattern), factorised once per shape as ``L D L^T`` by QDLDL
+  (``qdldl``: the matrix is symmetric positive definite; its approximate-minimum-degree ordering
+  and symbolic analysis are done once per thread, since every shape has the grid's pattern, and
+  only the numeric factorisation is repeated) and solved for every load case; the shapes of a
+  batch on as many threads as torch uses (the factorisation releases the GIL; each shape's solve
+  is the same on any count);
 * ``cg``: matrix-free conjugate gradients in torch, preconditioned by the diagonal, every shape and
   load case of the batch in one set of tensor operations on the moduli's device, warm-started from
   the previous solve of a batch of the same size.
 
-``auto`` picks ``direct`` for 2D grids on the CPU and ``cg`` for 3D grids and on accelerators: on
-this project's CPU a 3D grid of 40 x 20 x 20 elements (54k unknowns) took 20 s to factorise and
-2.8 s by CG; a 2D grid of 240 x 80 elements 0.3 s and 3.0 s (``docs/structural.md``, "Solver").
+``auto`` picks ``direct`` for 2D grids on the CPU and ``cg`` for 3D grids and on accelerators
+(``docs/structural.md``, "The solver", has the measurements).
 
 Public names: :class:`ElasticitySolver`, :data:`METHODS`.
 """
@@ -26,8 +28,8 @@ from __future__ import annotations
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
+import qdldl
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 import torch
 
 from .elements import element_stiffness
@@ -71,6 +73,7 @@ class ElasticitySolver:
         self._pattern: tuple | None = None
         self._warm: dict = {}
         self._torch_cache: dict = {}
+        self._ldl: dict[int, qdldl.Solver] = {}  # the direct method's QDLDL solvers, one per thread
 
     @property
     def n_loads(self) -> int:
@@ -126,20 +129,37 @@ class ElasticitySolver:
             return self._solve_cg(E.to(torch.float64))
         En = E.to(torch.float64).cpu().numpy()
         U = np.zeros((En.shape[0], self.n_loads, self.grid.n_dofs))
-        F = self.forces[:, self.free].T  # (nf, L)
-
-        def one(b: int) -> None:
-            lu = spla.splu(self.stiffness(En[b]).tocsc(), permc_spec="MMD_AT_PLUS_A")
-            U[b][:, self.free] = lu.solve(F).T
+        F = self.forces[:, self.free]  # (L, nf)
 
         workers = min(En.shape[0], torch.get_num_threads())
-        if workers > 1:  # SuperLU releases the GIL: the shapes' factorisations run side by side
+        chunks = np.array_split(np.arange(En.shape[0]), workers)
+
+        def run(k: int) -> None:  # chunk k of the shapes, with QDLDL solver k
+            for b in chunks[k]:
+                ldl, K = self._factorised(k, En[b])
+                for c in range(self.n_loads):
+                    u = ldl.solve(F[c])
+                    U[b, c, self.free] = u + ldl.solve(F[c] - K @ u)  # one step of iterative refinement
+
+        if workers > 1:  # the factorisations release the GIL and run side by side
             with ThreadPoolExecutor(workers) as pool:
-                list(pool.map(one, range(En.shape[0])))
+                list(pool.map(run, range(workers)))
         else:
-            for b in range(En.shape[0]):
-                one(b)
+            run(0)
         return torch.from_numpy(U).to(E.device)
+
+    def _factorised(self, slot: int, moduli: np.ndarray) -> tuple[qdldl.Solver, sp.csr_matrix]:
+        """QDLDL solver ``slot`` holding the factorisation of the stiffness of ``moduli`` (its
+        symbolic analysis from the first matrix, kept for every later one: the pattern is the
+        grid's), and the stiffness."""
+        K = self.stiffness(moduli)
+        A = sp.csc_matrix((K.data, K.indices, K.indptr), shape=K.shape)  # K is symmetric: its CSR is its CSC
+        ldl = self._ldl.get(slot)
+        if ldl is None:
+            self._ldl[slot] = ldl = qdldl.Solver(A)
+        else:
+            ldl.update(A)
+        return ldl, K
 
     def _torch_data(self, device: torch.device) -> tuple[torch.Tensor, ...]:
         key = str(device)
