@@ -14,8 +14,8 @@ volume fraction and the seconds.
 ``solver`` times solves of one grey-free solid/void design (void modulus 1e-6) with each method on
 2D and 3D grids, a batch of 8 shapes solved by CG in one call against the same 8 one by one, and
 (with more than one torch thread) the direct method's 16 factorisations of a 90 x 60 batch on all
-threads against one; the configurations take turns block by block and the script prints medians
-and ratios.
+threads against one, and its factoriser (QDLDL) against SciPy's SuperLU on the same batch; the
+configurations take turns block by block and the script prints medians and ratios.
 
 ``mbb RUN`` (any structural problem's run, after ``ginn eval RUN``) prints the run's volume
 fractions and compliances from its ``metrics.json`` beside the SIMP reference of its problem
@@ -28,9 +28,11 @@ import argparse
 import json
 import statistics
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
+import scipy.sparse.linalg as spla
 import torch
 
 from ginn.physics import ElasticitySolver, ElementGrid, simp
@@ -123,6 +125,34 @@ def run_solver(blocks: int) -> None:
         med = {n: statistics.median(v) for n, v in timed.items()}
         print(f"(90, 60) direct, 16 shapes: {threads} threads {med[threads]:.3f} s, 1 thread {med[1]:.3f} s, "
               f"1 / {threads} threads {med[1] / med[threads]:.2f}")
+    factorisers(blocks)
+
+
+def factorisers(blocks: int) -> None:
+    """The direct method's factoriser, QDLDL with one refinement step (``ElasticitySolver``), against
+    SciPy's SuperLU (minimum-degree ordering of ``A^T + A``), both on all torch threads, for the 16
+    shapes of a 90 x 60 batch."""
+    s, E = cantilever_case((90, 60), "direct")
+    batch = torch.stack([E * (1 + 0.1 * k) for k in range(16)])
+    F = s.forces[:, s.free].T
+    threads = torch.get_num_threads()
+
+    def superlu(b: int) -> np.ndarray:
+        return spla.splu(s.stiffness(batch[b].numpy()).tocsc(), permc_spec="MMD_AT_PLUS_A").solve(F)
+
+    runs = {"QDLDL": lambda: s.solve(batch), "SuperLU": lambda: list(pool.map(superlu, range(16)))}
+    timed: dict[str, list[float]] = {k: [] for k in runs}
+    with ThreadPoolExecutor(threads) as pool:
+        for _ in range(blocks):
+            for k, fn in runs.items():
+                t = time.perf_counter()
+                fn()
+                timed[k].append(time.perf_counter() - t)
+        U = s.solve(batch)[:, 0][:, s.free].numpy()
+        ref = np.stack([superlu(b)[:, 0] for b in range(16)])
+    med = {k: statistics.median(v) for k, v in timed.items()}
+    print(f"(90, 60) direct, 16 shapes on {threads} thread(s): QDLDL {med['QDLDL']:.3f} s, SuperLU {med['SuperLU']:.3f} s, "
+          f"SuperLU / QDLDL {med['SuperLU'] / med['QDLDL']:.2f}; largest difference {np.abs(U - ref).max() / np.abs(ref).max():.1e}")
 
 
 def run_against_simp(run: Path) -> None:
