@@ -7,12 +7,13 @@ fixed degrees of freedom are removed (zero displacement there); a load case is a
 forces. Two methods solve ``K u = f``:
 
 * ``direct``: the assembled sparse matrix of the free degrees of freedom (one scatter of the element
-  matrices into a precomputed CSR pattern), factorised once per shape as ``L D L^T`` by QDLDL
-  (``qdldl``: the matrix is symmetric positive definite; its approximate-minimum-degree ordering
-  and symbolic analysis are done once per thread, since every shape has the grid's pattern, and
-  only the numeric factorisation is repeated) and solved for every load case; the shapes of a
-  batch on as many threads as torch uses (the factorisation releases the GIL; each shape's solve
-  is the same on any count);
+  matrices into a precomputed CSR pattern), factorised once per shape and solved for every load
+  case; the shapes of a batch on as many threads as torch uses (the factorisations release the
+  GIL; each shape's solve is the same on any count). In 2D the factoriser is QDLDL (``qdldl``:
+  ``L D L^T`` of the symmetric positive definite matrix, its approximate-minimum-degree ordering
+  and symbolic analysis done once per thread, since every shape has the grid's pattern, then one
+  step of iterative refinement); in 3D, where its fill is larger, SciPy's SuperLU (minimum-degree
+  ordering of ``A^T + A``);
 * ``cg``: matrix-free conjugate gradients in torch, preconditioned by the diagonal, every shape and
   load case of the batch in one set of tensor operations on the moduli's device, warm-started from
   the previous solve of a batch of the same size.
@@ -30,6 +31,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 import qdldl
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 import torch
 
 from .elements import element_stiffness
@@ -136,6 +138,10 @@ class ElasticitySolver:
 
         def run(k: int) -> None:  # chunk k of the shapes, with QDLDL solver k
             for b in chunks[k]:
+                if self.grid.dim == 3:
+                    lu = spla.splu(self.stiffness(En[b]).tocsc(), permc_spec="MMD_AT_PLUS_A")
+                    U[b][:, self.free] = lu.solve(np.ascontiguousarray(F.T)).T
+                    continue
                 ldl, K = self._factorised(k, En[b])
                 for c in range(self.n_loads):
                     u = ldl.solve(F[c])
