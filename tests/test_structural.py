@@ -273,8 +273,8 @@ def test_elements_around_each_node():
 class _Field:
     """A stand-in for a step's batch: the given field values at the element centres."""
 
-    def __init__(self, f):
-        self.f = f
+    def __init__(self, f, step=10**9):
+        self.f, self.step = f, step
 
     def field_at(self, key, x):
         return self.f
@@ -284,7 +284,8 @@ def test_attachment_holds_the_load_pads_not_the_clamped_wall():
     """The cantilever's pads at x = 1.5, y in [0.1, 0.2] and [0.8, 0.9]: 7 nodes each on the
     90 x 60 grid (spacing 1/60, reach half of it), each with 2 elements in E; the clamped wall (a
     region) is not held. The term reads the report's grid (twice as fine: 13 nodes a pad) as its
-    verdict does. Loss ``relu(m + w/2) / w``, ``w = h / 2``; the verdict's share of nodes off the
+    verdict does. Loss ``relu(m + w/2) / w``, ``w`` from START_WIDTH times the depth (the report
+    grid's: 0.5 less half its element) to ``h / 2``; the verdict's share of nodes off the
     thresholded shape."""
     setting = _setting("cantilever", cells=0)
     p = setting.problem
@@ -299,6 +300,9 @@ def test_attachment_holds_the_load_pads_not_the_clamped_wall():
     assert np.allclose(grid.centres[around[around >= 0], 0], 1.5 - 1 / 120)
     term = Attachment(setting)
     h = 1 / 120
+    n = setting.cfg.training.iterations  # the step width follows the compliance's continuation
+    assert term.width(0) == pytest.approx(START_WIDTH * (0.5 - h / 2)) and term.width(n // 2) == pytest.approx(h / 2)
+    assert term.width(n // 4) == pytest.approx(np.sqrt(term.width(0) * h / 2), rel=1e-9)
     assert term.elements.shape == (26, 4) and int(term.present.sum()) == 52 and term.points.shape == (28, 2)
     assert np.allclose(term.points[:, 0], 1.5 - h / 2)  # the report grid's centres by the pads
     xc = term.points
@@ -307,6 +311,9 @@ def test_attachment_holds_the_load_pads_not_the_clamped_wall():
     assert float(term.loss(_Field((xc[:, 0] - 1.6)[None]))) == 0.0
     low = term.loss(_Field(torch.where(xc[:, 1] < 0.5, xc[:, 0] - 1.6, xc[:, 0] - 1.5 + h)[None]))
     assert float(low) == pytest.approx(0.5 * float(loss), rel=1e-9)  # one pad held of two
+    w0 = term.width(0)  # at the start the same shape costs (h / 2 + w0 / 2) / w0
+    early = term.loss(_Field((xc[:, 0] - 1.5 + h)[None], step=0))
+    assert float(early) == pytest.approx((h / 2 + w0 / 2) / w0, rel=1e-9)
     # a shape that stops a quarter of a pad short of its lower end: 3 of its 13 nodes unheld
     short = term.loss(_Field(torch.where(xc[:, 1] < 0.125, xc[:, 0] - 1.5 + h, xc[:, 0] - 1.6)[None]))
     assert float(short) == pytest.approx(3 / 26 * (h / 2 + h / 4) / (h / 2), rel=1e-9)

@@ -8,8 +8,13 @@ just as well by a shape on the far side of it as by one that carries the load. S
 on interfaces) must touch a solid element of E.
 
 Loss: over the held nodes and the shapes, the mean of ``relu(m + w / 2) / w``, ``m`` the smallest
-field value at the centres of the node's elements in E and ``w`` half their smallest side: zero
-once one of them is solid by a quarter element. The nodes and elements are those of the verdict's
+field value at the centres of the node's elements in E and ``w`` the step width of the
+compliance's continuation (:mod:`ginn.constraints.compliance`) on this grid: from half the design
+region's depth geometrically down to half an element side by half the run, then zero once one of
+the elements is solid by a quarter element. Early on, while the wide step lets the compliance
+itself reach the loads, the term pushes as gently as the step is wide; with the final width from
+the first step it decided the half MBB beam's topology early (seed 0: compliance 164.3 against
+147.0 without the term). The nodes and elements are those of the verdict's
 grid (below), so the term asks for what the verdict judges: on the training grid, whose element
 centres lie twice as far from a node, a shape rounded off at a pad's end held the training grid's
 elements and left the end nodes of the report grid on void (``docs/structural.md``). With the sharp
@@ -35,7 +40,7 @@ from ..problems.problem import Problem
 from ..problems.structural import held_elements, void_elements
 from .base import Constraint, Setting, Stage
 from .batch import Batch
-from .compliance import report_grid, solid_elements
+from .compliance import continuation, report_grid, solid_elements, start_width
 from .verdict import Verdict, Violation, number_text
 
 __all__ = ["Attachment", "AttachmentVerdict", "POINTS"]
@@ -100,8 +105,14 @@ class Attachment(Constraint):
         self.points = torch.as_tensor(grid.centres[used], dtype=setting.dtype, device=dev)  # (n_used, d)
         self.elements = torch.as_tensor(np.searchsorted(used, np.maximum(held, 0)), device=dev)  # into points
         self.present = torch.as_tensor(held >= 0, device=dev)
-        self.width = 0.5 * float(grid.h.min())
+        self.final_width = 0.5 * float(grid.h.min())
+        self.start_width = start_width(p, grid)
         self._verdict = AttachmentVerdict(p)
+
+    def width(self, step: int) -> float:
+        """``w`` at iteration ``step`` (module docstring)."""
+        a = continuation(step, self.setting.cfg.training.iterations)
+        return self.start_width * (self.final_width / self.start_width) ** a
 
     @property
     def verdict(self) -> AttachmentVerdict:
@@ -113,4 +124,5 @@ class Attachment(Constraint):
         f = batch.field_at(POINTS, self.points)  # (S, n_used)
         around = f[:, self.elements]  # (S, n_held, 2^d)
         m = torch.where(self.present, around, torch.full_like(around, torch.inf)).amin(dim=-1)
-        return torch.relu(m + 0.5 * self.width).mean() / self.width
+        w = self.width(batch.step)
+        return torch.relu(m + 0.5 * w).mean() / w

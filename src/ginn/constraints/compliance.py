@@ -61,7 +61,7 @@ from .batch import Batch
 from .verdict import Verdict, Violation
 
 __all__ = ["Compliance", "ComplianceReport", "report_grid", "solid_elements", "ELEMENTS", "CONTINUATION", "START_WIDTH",
-           "START_PENALTY", "covered",
+           "START_PENALTY", "continuation", "start_width", "covered",
            "volume_margin"]
 
 #: the key of the element centres' field values in a step (:meth:`ginn.constraints.batch.Batch.field_at`)
@@ -73,6 +73,19 @@ CONTINUATION = 0.5
 START_WIDTH = 0.5
 #: the penalty exponent at the start (compliance is convex in the densities at 1)
 START_PENALTY = 1.0
+
+
+def continuation(step: int, iterations: int) -> float:
+    """``a`` in [0, 1]: how far the continuation is at iteration ``step`` of a run of ``iterations``
+    (linear, reaching 1 at ``CONTINUATION`` of the run)."""
+    n = CONTINUATION * iterations
+    return min(step / n, 1.0) if n > 0 else 1.0
+
+
+def start_width(problem: Problem, grid: ElementGrid) -> float:
+    """The step width at the first iteration on ``grid``: ``START_WIDTH`` times the design region's
+    depth, at least the final width (half the smallest element side)."""
+    return max(START_WIDTH * design_depth(problem, grid), 0.5 * float(grid.h.min()))
 
 
 def covered(f: Tensor, grid: ElementGrid) -> Tensor:
@@ -186,7 +199,7 @@ class Compliance(Constraint):
         self.void = torch.as_tensor(void_elements(p, self.grid), device=dev)
         self.centres = torch.as_tensor(self.grid.centres, dtype=setting.dtype, device=dev)
         self.final_width = 0.5 * float(self.grid.h.min())
-        self.start_width = max(START_WIDTH * design_depth(p, self.grid), self.final_width)
+        self.start_width = start_width(p, self.grid)
         self.width, self.penalty = self.final_width, PENALTY
         self.modulus = float(p.physics.youngs_modulus)
         solid = torch.where(self.void, 0.0, 1.0).to(torch.float64)[None]
@@ -195,8 +208,7 @@ class Compliance(Constraint):
 
     def schedule(self, step: int) -> tuple[float, float]:
         """``(width, penalty)`` at iteration ``step`` (the continuation of the module docstring)."""
-        n = CONTINUATION * self.setting.cfg.training.iterations
-        a = min(step / n, 1.0) if n > 0 else 1.0
+        a = continuation(step, self.setting.cfg.training.iterations)
         w0 = self.start_width
         return w0 * (self.final_width / w0) ** a, START_PENALTY + (PENALTY - START_PENALTY) * a
 
