@@ -40,7 +40,7 @@ from ..problems.problem import Problem
 from ..problems.structural import held_elements, void_elements
 from .base import Constraint, Setting, Stage
 from .batch import Batch
-from .compliance import continuation, report_grid, solid_elements, start_width
+from .compliance import continuation, narrowed, report_grid, solid_elements, start_width
 from .verdict import Verdict, Violation, number_text
 
 __all__ = ["Attachment", "AttachmentVerdict", "POINTS"]
@@ -111,8 +111,7 @@ class Attachment(Constraint):
 
     def width(self, step: int) -> float:
         """``w`` at iteration ``step`` (module docstring)."""
-        a = continuation(step, self.setting.cfg.training.iterations)
-        return self.start_width * (self.final_width / self.start_width) ** a
+        return narrowed(self.start_width, self.final_width, continuation(step, self.setting.cfg.training.iterations))
 
     @property
     def verdict(self) -> AttachmentVerdict:

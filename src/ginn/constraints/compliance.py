@@ -61,7 +61,7 @@ from .batch import Batch
 from .verdict import Verdict, Violation
 
 __all__ = ["Compliance", "ComplianceReport", "report_grid", "solid_elements", "ELEMENTS", "CONTINUATION", "START_WIDTH",
-           "START_PENALTY", "continuation", "start_width", "covered",
+           "START_PENALTY", "continuation", "narrowed", "start_width", "covered",
            "volume_margin"]
 
 #: the key of the element centres' field values in a step (:meth:`ginn.constraints.batch.Batch.field_at`)
@@ -80,6 +80,11 @@ def continuation(step: int, iterations: int) -> float:
     (linear, reaching 1 at ``CONTINUATION`` of the run)."""
     n = CONTINUATION * iterations
     return min(step / n, 1.0) if n > 0 else 1.0
+
+
+def narrowed(start: float, final: float, a: float) -> float:
+    """The step width ``a`` of the way through the continuation: geometric from ``start`` to ``final``."""
+    return start * (final / start) ** a
 
 
 def start_width(problem: Problem, grid: ElementGrid) -> float:
@@ -209,8 +214,7 @@ class Compliance(Constraint):
     def schedule(self, step: int) -> tuple[float, float]:
         """``(width, penalty)`` at iteration ``step`` (the continuation of the module docstring)."""
         a = continuation(step, self.setting.cfg.training.iterations)
-        w0 = self.start_width
-        return w0 * (self.final_width / w0) ** a, START_PENALTY + (PENALTY - START_PENALTY) * a
+        return narrowed(self.start_width, self.final_width, a), START_PENALTY + (PENALTY - START_PENALTY) * a
 
     def density(self, f: Tensor) -> Tensor:
         """Element densities ``(S, n_elements)`` of field values at the centres ``(S, n_elements)``
