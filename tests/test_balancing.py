@@ -161,3 +161,30 @@ def test_a_bounded_objective_falls_while_met_and_others_never_do():
     # violated and off track: raised like any constraint, from where it fell
     assert m.on_check({"diversity": 1.5, "interface": 0.5}, 6) == {"diversity": 2.0}
     assert m.multipliers()["diversity"] == pytest.approx(0.81)
+
+
+def test_a_hard_bound_is_raised_by_the_full_factor_until_met():
+    """min (x - 0.5)^2 + lambda relu(x - 0.48) has x = max(0.48, 0.5 - lambda / 2): the exact
+    penalty meets the bound exactly once lambda >= 0.04. From lambda = 0.001 the violation's ratio
+    to the bound stays near 1.04, so q^2 raises lambda by about 8 % a check and 16 checks leave it
+    at 0.003, 4 % over the bound; as a hard bound it doubles at every check that finds it off
+    track (once the violation halves within a check, the next is on track) and is met from the
+    eleventh check on."""
+    def run(hard):
+        m = CheckedMultipliers({"volume": LossTerm(weight=0.001)}, {"volume_fraction": ("volume",)},
+                               hard=("volume_fraction",) if hard else ())
+        ratios = []
+        for check in range(16):
+            x = max(0.48, 0.5 - m.weight("volume") / 2)
+            ratios.append(x / 0.48)
+            m.on_check({"volume_fraction": x / 0.48}, 15 - check)
+        return ratios, m.weight("volume")
+
+    soft, lam_soft = run(False)
+    hard, lam_hard = run(True)
+    assert min(soft) > 1.038 and lam_soft < 0.004
+    assert max(hard[10:]) == 1.0 and min(hard[:10]) > 1.008
+    assert lam_hard == pytest.approx(0.064)
+    b = make_balancer({"volume": LossTerm(weight=1.0)}, BalancingConfig(method="feasibility"),
+                      Balance(groups={"volume_fraction": ("volume",)}, hard=("volume_fraction",)))
+    assert b.hard == ("volume_fraction",)

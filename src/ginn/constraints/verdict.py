@@ -62,13 +62,17 @@ class Verdict(abc.ABC):
     Class attributes: ``name`` (the constraint's name in the verdict and in
     ``metrics.json``), ``on_set`` (judges the set, not each shape), ``judges`` (False for a report
     that never finds a shape infeasible: ``ginn eval`` measures it, the feasibility checks of
-    :class:`ginn.eval.feasibility.FeasibilityCheck` do not). Instances: ``metrics``, the metric
+    :class:`ginn.eval.feasibility.FeasibilityCheck` do not), ``hard`` (the bound has no tolerance
+    of its own, being a level of a quantity that is not an error, so that ``value / bound`` near
+    1 says nothing of how far off a shape is; the check-driven multipliers raise such a bound's
+    terms by their full factor, :mod:`ginn.train.balancing`). Instances: ``metrics``, the metric
     names it reads.
     """
 
     name: ClassVar[str]
     on_set: ClassVar[bool] = False
     judges: ClassVar[bool] = True
+    hard: ClassVar[bool] = False
 
     def __init__(self, problem: Problem):
         self.problem = problem
@@ -101,9 +105,10 @@ class Verdict(abc.ABC):
 
 class IntervalVerdict(Verdict):
     """One per-shape metric ``metric`` within ``bounds`` (a :class:`~ginn.problems.problem.Bounds`
-    from the problem's tolerances, set by the subclass)."""
+    from the problem's tolerances, set by the subclass); a hard bound."""
 
     metric: ClassVar[str]
+    hard = True
 
     def __init__(self, problem: Problem, bounds: Bounds):
         super().__init__(problem)

@@ -192,13 +192,14 @@ class ShapeTask(Task):
 
     def balance(self) -> Balance:
         """Each constraint's target, the verdict's constraints with the terms that enforce them,
-        and the verdicts that bound an objective (a least diversity)."""
+        the verdicts that bound an objective (a least diversity) and the hard bounds."""
         groups: dict[str, tuple[str, ...]] = {}
         for c in self.constraints:
             if c.verdict is not None:
                 groups[c.verdict.name] = groups.get(c.verdict.name, ()) + (c.name,)
         return Balance(targets={c.name: t for c in self.constraints if (t := c.target()) is not None}, groups=groups,
-                       bounded=tuple(c.verdict.name for c in self.constraints if c.bounds_objective()))
+                       bounded=tuple(c.verdict.name for c in self.constraints if c.bounds_objective()),
+                       hard=tuple(c.verdict.name for c in self.constraints if c.verdict is not None and c.verdict.hard))
 
     def checker(self) -> FeasibilityCheck:
         """The coarse-grid check of the problem's tolerances (``RESOLUTION['check']``), with the
