@@ -15,12 +15,13 @@ states, so that every problem trains with the settings ginn derives). Each (prob
 evaluated like ``ginn eval`` (the problem's tolerances, ``docs/problem-spec.md``), and printed as
 one row: feasible shapes of all, the worst CD1 (the interface tolerance times ``unit_scale`` in
 brackets), the worst volume outside E that the verdict bounds (beyond the interface tolerance of
-the interfaces) and the worst of the paper's vol_out (all of it), the diversity, and the wall time
-of training and evaluation; for a generative problem also the held-out codes of its latent set
-that give a feasible shape and the smoothness of z -> shape (``ginn eval``). The last lines are the
-share of (problem, seed) pairs that end with every shape feasible and of the generative ones with
-at least 90 % of the held-out codes feasible.
-A JSON copy of the table goes to ``OUT/suite.json``, row by row (a row of the same problem
+the interfaces) and the worst of the paper's vol_out (all of it), the diversity, the objective's
+quality where the objective is the point of the problem (Plateau's CD2 and area against its
+reference, a structural problem's compliance), and the wall time of training and evaluation; for a
+generative problem also the held-out codes of its latent set that give a feasible shape and the
+smoothness of z -> shape (``ginn eval``). The last lines are the share of (problem, seed) pairs that
+end with every shape feasible and of the generative ones with at least 90 % of the held-out codes
+feasible. A JSON copy of the table goes to ``OUT/suite.json``, row by row (a row of the same problem
 and seed replaces the earlier one, so several suite processes can share ``--out``). SIGINT or
 SIGTERM stops the suite after checkpointing the run in progress.
 
@@ -114,8 +115,33 @@ def run_one(problem: str, seed: int, out: Path, iterations: int | None, threads:
             "change_rate_max": metrics.get("latent_space", {}).get("change_rate_max"),
             "topology_changes": metrics.get("latent_space", {}).get("topology_changes"),
             "minutes": wall / 60.0, "iterations": outcome.step,
+            "objective": objective(metrics["shapes"]),
             "holes": [m.get("b1_in_design_region") for m in metrics["shapes"]],
             "genus": [m.get("genus") for m in metrics["shapes"]]}
+
+
+def objective(shapes: list[dict]) -> dict | None:
+    """The quality of the objective where the problem's objective is the point of it: the worst
+    CD2 to the reference surface and the area's relative error furthest from 0 (a problem with a
+    reference, Plateau's), or the least and largest compliance (a structural problem); None
+    otherwise."""
+    cd2 = [m["cd2_to_reference"] for m in shapes if m.get("cd2_to_reference") is not None]
+    if cd2:
+        err = [m["area_relative_error"] for m in shapes if m.get("area_relative_error") is not None]
+        return {"cd2_to_reference": max(cd2), "area_relative_error": max(err, key=abs) if err else None}
+    c = [m["compliance"] for m in shapes if m.get("compliance") is not None]
+    return {"compliance": [min(c), max(c)]} if c else None
+
+
+def objective_text(o: dict | None) -> str:
+    """``CD2 0.0050, area -1.3 %``, ``compliance 180 to 239`` or ``–``."""
+    if not o:
+        return "–"
+    if "compliance" in o:
+        lo, hi = o["compliance"]
+        return f"compliance {lo:.4g}" if lo == hi else f"compliance {lo:.4g} to {hi:.4g}"
+    err = o.get("area_relative_error")
+    return f"CD2 {o['cd2_to_reference']:.2g}" + ("" if err is None else f", area {100 * err:+.1f} %")
 
 
 def topology_line(r: dict) -> str:
@@ -140,7 +166,8 @@ def format_row(r: dict) -> str:
     return (f"| {r['problem']} | {r['seed']} | {r['feasible']}/{r['shapes']} | {_z(r)} "
             f"| {_f(r['worst_cd1'])} ({_f(r['cd1_bound'], '.0e')}) "
             f"| {_f(r['worst_volume_outside'])} | {_f(r.get('worst_vol_out'))} | {_f(r['diversity_mean'], '.3f')} "
-            f"| {_f(r.get('change_rate_max'), '.2f')} | {_f(r.get('topology_changes'), 'd')} | {r['minutes']:.1f} |")
+            f"| {_f(r.get('change_rate_max'), '.2f')} | {_f(r.get('topology_changes'), 'd')} | {objective_text(r.get('objective'))} "
+            f"| {r['minutes']:.1f} |")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -177,8 +204,8 @@ def main(argv: list[str] | None = None) -> int:
     tag = "".join(f"-{k}{v}" for k, v in sorted(topology.items()))
     out = Path(args.out)
     print("| problem | seed | feasible | held-out latents feasible | worst CD1 (bound) | worst vol outside E | worst vol_out "
-          "| diversity | shape change per unit latent (max) | topology changes | minutes |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+          "| diversity | shape change per unit latent (max) | topology changes | objective | minutes |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     rows = []
     for name in names:
         for seed in args.seeds:

@@ -1,6 +1,7 @@
 """Plateau evaluation: hull clipping, chamfer, and the whole pipeline on fields whose zero set is known."""
 
 import numpy as np
+import pytest
 import torch
 
 from ginn.eval.plateau import chamfer_cd2, clip_mesh, evaluate_plateau, hull_halfspaces
@@ -120,3 +121,44 @@ def test_outputs(tmp_path):
     m = trimesh.load(tmp_path / "plateau" / "surface.stl")
     assert abs(m.area - 1.0) <= 1e-5
     assert render_plateau(np.zeros((0, 3)), np.zeros((0, 3), dtype=int), G, tmp_path / "empty.png").exists()
+
+
+def test_the_reference_verdict_judges_cd2_and_area():
+    """Plateau's problem with the square z = 0.5 as its reference and a field whose zero set is the
+    plane z = 0.5 + 0.03 c at the code c: c = 0 is the reference (feasible), c = 1 lies
+    sqrt(2) 0.03 = 0.042 from it in CD2 (over the bound 0.02, area still 1), and a bound of 0.05
+    admits it. ``ginn eval`` and the checks measure it through ``ShapeTask.verdicts``."""
+    from ginn import runs
+    from ginn.eval.plateau import ReferenceVerdict
+    from ginn.eval.reference.minimal_surface import MinimalSurface, MinimizeInfo
+    from ginn.problems import ProblemSpec, load_spec
+    from ginn.problems.problem import ReferenceBound
+    from ginn.tasks.shape import ShapeTask
+
+    spec = load_spec("plateau")
+    problem = spec.build()
+    V, F = _grid_mesh(0, 1, 8, z=0.5)
+    ref = (MinimalSurface(V, F, np.zeros(len(V), dtype=bool), 1.0, MinimizeInfo()), 1.0)
+    verdict = ReferenceVerdict(problem, reference=ref)
+
+    def field(x, z):
+        return x[:, 2] - 0.5 - 0.03 * z[:, 0]
+
+    on = verdict.measure(None, None, field, torch.tensor([0.0]))
+    off = verdict.measure(None, None, field, torch.tensor([1.0]))
+    assert on["cd2_to_reference"] <= 1e-6 and abs(on["area_relative_error"]) <= 1e-9
+    assert verdict.violation(on) is None and verdict.ratio(on) <= 1e-4
+    assert abs(off["cd2_to_reference"] - np.sqrt(2) * 0.03) <= 1e-6 and abs(off["area_relative_error"]) <= 1e-9
+    bad = verdict.violation(off)
+    assert bad is not None and verdict.ratio(off) == pytest.approx(np.sqrt(2) * 1.5, rel=1e-5)
+    assert ReferenceVerdict.describe(bad) == "reference: CD2 0.0424 > 0.02"
+    assert ReferenceVerdict.describe(type(bad)({"cd2": 0.01, "area": -0.425}, {"cd2": 0.02, "area": 0.02})) == \
+        "reference: area -42.5 % (bound 2 %)"
+    data = spec.model_dump(mode="json")
+    data["tolerances"]["reference"] = {"cd2": 0.05}
+    loose = ProblemSpec.model_validate(data)
+    assert loose.build().tolerances.reference == ReferenceBound(0.05, 0.02)
+    assert ReferenceVerdict(loose.build(), reference=ref).violation(off) is None
+    _, cfg = runs.resolve("plateau", None)
+    task = ShapeTask(problem, cfg, "cpu", torch.float32)
+    assert [v.name for v in task.verdicts()][-1] == "reference"

@@ -89,3 +89,13 @@ def test_a_topology_target_joins_the_spec_and_the_name(suite, capsys):
     assert suite.topology_line({"dim": 3, "genus": [1, 1, 0]}) == "  genus per shape: 1: 2, 0: 1"
     assert suite.main(["--only", "hook-2d", "--topology", "holes=-1"]) == 2
     assert "--topology" in capsys.readouterr().err
+
+
+def test_the_objective_column(suite):
+    plateau = [{"cd2_to_reference": 0.004, "area_relative_error": -0.013}, {"cd2_to_reference": 0.2, "area_relative_error": 0.01}]
+    o = suite.objective(plateau)
+    assert o == {"cd2_to_reference": 0.2, "area_relative_error": -0.013}
+    assert suite.objective_text(o) == "CD2 0.2, area -1.3 %"
+    beams = [{"compliance": 150.1}, {"compliance": 180.0}, {"compliance": None}]
+    assert suite.objective_text(suite.objective(beams)) == "compliance 150.1 to 180"
+    assert suite.objective([{"interface_cd1": 1e-3}]) is None and suite.objective_text(None) == "–"

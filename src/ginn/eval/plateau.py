@@ -14,22 +14,30 @@ of the field is an arbitrary continuation), and compared with the reference mesh
 * ``interface_cd1``: CD1 of ``Gamma`` to the surface (RMS distance from samples of ``Gamma``).
 
 Public names: :func:`evaluate_plateau`, :func:`extract_plateau_surface`, :func:`reference_surface`,
-:func:`hull_halfspaces`, :func:`clip_mesh`, :func:`chamfer_cd2`, :data:`PLATEAU_REFERENCE_AREA`; the
-result files and renders are :mod:`ginn.viz.plateau`.
+:func:`hull_halfspaces`, :func:`clip_mesh`, :func:`chamfer_cd2`, :data:`PLATEAU_REFERENCE_AREA`, and
+:class:`ReferenceVerdict`, the verdict that holds each shape to the reference (a shape task adds it
+to the verdicts of a problem with ``reference: minimal-surface``); the result files and renders
+are :mod:`ginn.viz.plateau`.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import Any
+
 import numpy as np
 import torch
 from scipy.spatial import ConvexHull
+from torch import Tensor
 
+from ..constraints.verdict import Verdict, Violation, number_text
 from ..extract.boundary import Boundary, extract_boundary
 from ..extract.grid import make_grid
 from ..extract.sampling import field_dtype_device, sample_field
 from ..fields import Field, evaluate, mean_curvature
 from ..geometry.base import Box
 from ..levelset import project_to_zero
+from ..problems.problem import Problem
 from .reference.minimal_surface import (
     PLATEAU_AREA_ESTIMATE,
     MinimalSurface,
@@ -167,10 +175,11 @@ def gamma_of(problem_or_gamma) -> np.ndarray:
 
 
 def extract_plateau_surface(
-    field: Field, gamma: np.ndarray, resolution: int = 128, margin: float = 0.05
+    field: Field, gamma: np.ndarray, resolution: int = 128, margin: float = 0.05, z: Tensor | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The zero level set of ``field`` near ``gamma`` (marching cubes over gamma's bounding box grown by
-    ``margin`` times its diameter), clipped exactly to the convex hull of ``gamma``.
+    """The zero level set of ``field`` (at the code ``z (k,)``, if any) near ``gamma`` (marching cubes
+    over gamma's bounding box grown by ``margin`` times its diameter), clipped exactly to the convex
+    hull of ``gamma``.
 
     Returns:
         ``(V (n, 3), F (m, 3))``.
@@ -179,7 +188,7 @@ def extract_plateau_surface(
     lo, hi = G.min(axis=0), G.max(axis=0)
     pad = margin * float(np.linalg.norm(hi - lo))
     grid = make_grid(Box(tuple(lo - pad), tuple(hi + pad)), resolution)
-    values = sample_field(field, grid, None)
+    values = sample_field(field, grid, z)
     bnd = extract_boundary(values, grid, close=False)
     # marching cubes returns float32 vertices: relax the hull by 1e-3 cells (a planar gamma's slab)
     A, b = hull_halfspaces(G, slab=1e-3 * float(grid.spacing.min()))
@@ -201,16 +210,19 @@ def reference_surface(gamma: np.ndarray, rings: int = 32) -> tuple[MinimalSurfac
 
 
 def mean_abs_mean_curvature(
-    field: Field, V: np.ndarray, F: np.ndarray, A: np.ndarray, b: np.ndarray, n: int = 2048, seed: int = 0
+    field: Field, V: np.ndarray, F: np.ndarray, A: np.ndarray, b: np.ndarray, n: int = 2048, seed: int = 0,
+    z: Tensor | None = None,
 ) -> tuple[float, int]:
-    """Mean ``|kappa_H|`` at ``n`` area-uniform samples of ``(V, F)`` projected onto ``f = 0``, kept when
-    converged and inside ``A x <= b``. Returns ``(value, number of points used)``."""
+    """Mean ``|kappa_H|`` at ``n`` area-uniform samples of ``(V, F)`` projected onto ``f = 0`` of
+    ``field`` (at the code ``z (k,)``, if any), kept when converged and inside ``A x <= b``.
+    Returns ``(value, number of points used)``."""
     if len(F) == 0:
         return float("nan"), 0
     dtype, device = field_dtype_device(field)
     x0 = torch.as_tensor(sample_surface(V, F, n, np.random.default_rng(seed)), dtype=dtype, device=device)
     tol = 1e-4 if dtype == torch.float32 else 1e-9
-    proj = project_to_zero(field, x0, None, steps=8, tol=tol)
+    code = None if z is None else torch.as_tensor(z, dtype=dtype, device=device).reshape(1, -1)
+    proj = project_to_zero(field, x0, None if code is None else code.expand(x0.shape[0], -1), steps=8, tol=tol)
     x, _ = proj.select()
     if x.shape[0] == 0:
         return float("nan"), 0
@@ -219,7 +231,8 @@ def mean_abs_mean_curvature(
     x = x[torch.as_tensor(inside, device=x.device)]
     if x.shape[0] == 0:
         return float("nan"), 0
-    v = evaluate(field, x, None, grad=False, hessian_at=True, create_graph=False)
+    v = evaluate(field, x, None if code is None else code.expand(x.shape[0], -1), grad=False, hessian_at=True,
+                 create_graph=False)
     kh = mean_curvature(v.hessian_grad, v.hessian)
     return float(kh.abs().mean().item()), int(x.shape[0])
 
@@ -233,6 +246,7 @@ def evaluate_plateau(
     n_curvature: int = 2048,
     seed: int = 0,
     reference: tuple[MinimalSurface, float] | None = None,
+    z: Tensor | None = None,
 ) -> dict[str, float]:
     """Plateau metrics of a trained field (``(x, z) -> (n,)``, surface ``{f = 0}``).
 
@@ -244,19 +258,20 @@ def evaluate_plateau(
         n_samples: samples per surface for the chamfer discrepancy.
         n_curvature: surface samples for the mean curvature.
         reference: ``(MinimalSurface, area)`` to compare with (default :func:`reference_surface`).
+        z: the code ``(k,)`` of the shape of a generative model (None: a single shape).
 
     Returns:
         ``cd2_to_reference``, ``area``, ``reference_area``, ``area_relative_error`` (signed),
         ``mean_abs_mean_curvature``, ``n_curvature_points``, ``interface_cd1``.
     """
     G = gamma_of(problem_or_gamma)
-    V, F = extract_plateau_surface(field, G, resolution)
+    V, F = extract_plateau_surface(field, G, resolution, z=z)
     ref, ref_area = reference if reference is not None else reference_surface(G)
     cd2, _, _ = chamfer_cd2(V, F, ref.V, ref.F, n_samples, seed)
     area = float(triangle_areas(V, F).sum()) if len(F) else 0.0
     diam = float(np.linalg.norm(G.max(0) - G.min(0)))
     A, b = hull_halfspaces(G, eps=1e-6 * diam, slab=1e-4 * diam)
-    kh, n_kh = mean_abs_mean_curvature(field, V, F, A, b, n_curvature, seed)
+    kh, n_kh = mean_abs_mean_curvature(field, V, F, A, b, n_curvature, seed, z=z)
     # Gamma to the surface: RMS distance from samples along the polygon
     curve = polygon_curve(G)
     gs = curve(np.random.default_rng(seed).random(4096))
@@ -270,3 +285,56 @@ def evaluate_plateau(
         "n_curvature_points": n_kh,
         "interface_cd1": icd,
     }
+
+
+class ReferenceVerdict(Verdict):
+    """A problem with a reference solution (``reference: minimal-surface``): each shape's surface
+    within ``tolerances.reference`` of it, the CD2 between the two surfaces and the relative
+    difference of their areas (:func:`evaluate_plateau`). Such a problem's objective is the point of
+    it (Plateau's: the least area spanning the polygon), and a surface that meets the polygon
+    with a fraction of the minimal surface's area meets every geometric bound; this verdict is the
+    objective's quality in the verdict. ``reference``: ``(MinimalSurface, area)`` to compare with
+    (default :func:`reference_surface` of the problem's polygon, computed at the first use)."""
+
+    name = "reference"
+
+    def __init__(self, problem: Problem, reference: tuple[MinimalSurface, float] | None = None):
+        super().__init__(problem)
+        self.metrics = ("cd2_to_reference", "area_relative_error")
+        self.bound = problem.tolerances.reference
+        self._reference = reference
+
+    def measure(self, shape, context, field, z) -> dict[str, Any]:
+        if self._reference is None:
+            self._reference = reference_surface(gamma_of(self.problem))
+        m = evaluate_plateau(field, self.problem, reference=self._reference, z=None if z is None else torch.as_tensor(z).reshape(-1))
+        return {k: m[k] for k in ("cd2_to_reference", "area_relative_error")}
+
+    def _parts(self, metrics: Mapping) -> tuple[float, float] | None:
+        cd2, err = metrics.get("cd2_to_reference"), metrics.get("area_relative_error")
+        if cd2 is None or err is None:
+            return None
+        return float(cd2), float(err)
+
+    def violation(self, metrics: Mapping) -> Violation | None:
+        parts = self._parts(metrics)
+        if parts is None or (parts[0] <= self.bound.cd2 and abs(parts[1]) <= self.bound.area):
+            return None
+        return Violation({"cd2": parts[0], "area": parts[1]}, {"cd2": self.bound.cd2, "area": self.bound.area})
+
+    def ratio(self, metrics: Mapping) -> float | None:
+        """The larger of CD2 over its bound and |area error| over its bound."""
+        parts = self._parts(metrics)
+        if parts is None:
+            return None
+        return max(parts[0] / self.bound.cd2, abs(parts[1]) / self.bound.area)
+
+    @classmethod
+    def describe(cls, v: Violation) -> str:
+        """``reference: CD2 0.209 > 0.02, area -42.5 % (bound 2 %)``."""
+        out = []
+        if v.value["cd2"] > v.bound["cd2"]:
+            out.append(f"CD2 {number_text(v.value['cd2'])} > {number_text(v.bound['cd2'])}")
+        if abs(v.value["area"]) > v.bound["area"]:
+            out.append(f"area {100 * v.value['area']:+.1f} % (bound {100 * v.bound['area']:.3g} %)")
+        return f"{cls.name}: " + ", ".join(out)

@@ -34,13 +34,15 @@ METRIC_LABELS = {
     "face_deviation": "↓ flat faces: largest normal angle / allowed",
     "compliance": "↓ compliance (weighted over the load cases)",
     "max_displacement": "largest displacement",
+    "cd2_to_reference": "↓ CD2 to the reference surface",
+    "area_relative_error": "area / reference area - 1",
     "diversity_mean": "↑ δ_mean(S)",
 }
 
 _ROWS = tuple(k for k in METRIC_LABELS if k != "diversity_mean")
 #: rows shown only where a run measures them (the verdicts of some tolerances measure them)
 _OPTIONAL = ("boundary_area", "thickness_removed", "gap_filled", "overhang_share", "sharp_share", "curvature_max", "face_deviation",
-             "compliance", "max_displacement")
+             "compliance", "max_displacement", "cd2_to_reference", "area_relative_error")
 
 
 def _fmt(v) -> str:

@@ -71,6 +71,16 @@ class CurvatureBound:
 
 
 @dataclass(frozen=True)
+class ReferenceBound:
+    """How close a shape must come to its problem's reference solution (``reference:
+    minimal-surface``): the CD2 between the two surfaces at most ``cd2`` and the relative
+    difference of their areas at most ``area`` in absolute value (:class:`ginn.eval.plateau.ReferenceVerdict`)."""
+
+    cd2: float = 0.02
+    area: float = 0.02
+
+
+@dataclass(frozen=True)
 class FlatFace:
     """A flat face: the boundary inside ``region`` has its outward normal within ``angle``
     degrees of ``normal`` (flat and parallel to the plane with that normal;
@@ -111,6 +121,7 @@ class Tolerances:
         area: bounds on the area (2D: length) of each shape's boundary, in the problem's units
             (None: free).
         faces: flat faces the boundary must have (none: free).
+        reference: how close to the reference solution, where the problem has one.
     """
 
     interface: float = 5e-3
@@ -126,6 +137,7 @@ class Tolerances:
     min_radius: CurvatureBound | None = None
     area: Bounds | None = None
     faces: tuple[FlatFace, ...] = ()
+    reference: ReferenceBound = ReferenceBound()
 
 
 @dataclass(frozen=True)

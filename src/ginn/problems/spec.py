@@ -29,7 +29,7 @@ from .forced import forced_holes, forced_tunnels
 from .interfaces import INTERFACE_TYPES, InterfaceSpec
 from .nodes import Dir3, Direction, Finite, Fraction, Node, NonNegative, Point, Positive, check_lo_hi, spec_dim
 from .physics_spec import PhysicsSpec
-from .problem import Bounds, CurvatureBound, FeatureSize, FlatFace, Overhang, Problem, Tolerances, Topology
+from .problem import Bounds, CurvatureBound, FeatureSize, FlatFace, Overhang, Problem, ReferenceBound, Tolerances, Topology
 from .regions import REGION_TYPES, RegionSpec
 from .symmetric import check_symmetric
 
@@ -143,6 +143,17 @@ class FlatFaceSpec(Node):
         2.0, description="the largest angle in degrees between the boundary's normal in the region and normal")
 
 
+class ReferenceBoundSpec(Node):
+    """How close to the reference solution (:class:`~ginn.problems.problem.ReferenceBound`)."""
+
+    cd2: Positive = Field(0.02, description="bound of the CD2 (paper eq. 4-5) between the shape's surface and the "
+                          "reference surface, in the problem's units")
+    area: Positive = Field(0.02, description="bound of |area - reference area| / reference area")
+
+    def build(self) -> ReferenceBound:
+        return ReferenceBound(float(self.cd2), float(self.area))
+
+
 class TolerancesSpec(Node):
     """When a shape is feasible (:class:`~ginn.problems.problem.Tolerances`)."""
 
@@ -183,6 +194,10 @@ class TolerancesSpec(Node):
     area: AreaSpec | None = Field(
         None, description="bounds on the area (2D: length) of each shape's boundary inside the domain, in the "
         "problem's units: {max: 2.5}, {min: 1.0}, or both; a number is the largest area")
+    reference: ReferenceBoundSpec = Field(
+        default_factory=ReferenceBoundSpec, description="where the problem states a reference solution: how close "
+        "each shape's surface must come to it, {cd2: 0.02, area: 0.02} (the CD2 between the surfaces and the "
+        "relative difference of their areas)")
 
     #: the key a bare number stands for, by field: ``min_thickness: 0.05`` is ``{size: 0.05}``
     NUMBER_MEANS: ClassVar[dict[str, str]] = {"volume_fraction": "max", "area": "max", "min_thickness": "size",
@@ -420,7 +435,7 @@ class ProblemSpec(BaseModel):
     def _tolerances(self) -> Tolerances:
         t = self.tolerances
         built = {k: getattr(t, k) and getattr(t, k).build()
-                 for k in ("volume_fraction", "area", "min_thickness", "min_gap", "overhang", "min_radius")}
+                 for k in ("volume_fraction", "area", "min_thickness", "min_gap", "overhang", "min_radius", "reference")}
         built["faces"] = ()  # regions need the geometry's build (ProblemSpec.build)
         return Tolerances(**{**t.model_dump(exclude=set(built)), **built,
                              "connected": t.connected or self.topology.components == 1})

@@ -21,6 +21,7 @@ from ...config import HELDOUT_LATENTS, HELDOUT_PER_SHAPE, MIN_STEP_CODES, LossTe
 from ...constraints import BUILTIN_SETS, Batch, Constraint, SampleSet, Setting, Verdict, shape_constraints, verdicts_of
 from ...errors import ConfigError, SpecError
 from ...eval.feasibility import FeasibilityCheck
+from ...eval.plateau import ReferenceVerdict
 from ...geometry.base import Region
 from ...models.factory import build_model
 from ...models.frame import DomainFrame
@@ -81,6 +82,7 @@ class ShapeTask(Task):
         self.constraints: list[Constraint] = shape_constraints(self.setting) + [make(self.setting) for make in extra]
         self.Z = fixed_latents(cfg.latents, self.device, dtype)
         self._check: FeasibilityCheck | None = None
+        self._verdicts: list[Verdict] | None = None
         self.dist: DistContext | None = None  # when trained data-parallel (see distribute)
         self.shard: tuple[int, int] | None = None
 
@@ -132,8 +134,14 @@ class ShapeTask(Task):
                 c.load_state_dict(state[c.name])
 
     def verdicts(self) -> list[Verdict]:
-        """The problem's verdicts and those of its constraints (:func:`ginn.constraints.verdicts_of`)."""
-        return verdicts_of(self.problem, self.constraints)
+        """The problem's verdicts and those of its constraints (:func:`ginn.constraints.verdicts_of`),
+        and the comparison with the reference solution where the problem has one
+        (:class:`ginn.eval.plateau.ReferenceVerdict`), built once per task."""
+        if self._verdicts is None:
+            self._verdicts = verdicts_of(self.problem, self.constraints)
+            if self.problem.reference == "minimal-surface":
+                self._verdicts.append(ReferenceVerdict(self.problem))
+        return list(self._verdicts)
 
     def distribute(self, ctx: DistContext) -> None:
         """Train only this rank's slice of the shapes (``ginn.train.distributed``)."""
