@@ -9,7 +9,7 @@ import pytest
 import torch
 
 from _shapes import LineField
-from ginn.constraints import FlatFaces, FlatFacesVerdict
+from ginn.constraints import Faces, FacesVerdict
 from ginn.errors import SpecError
 from ginn.extract.boundary import extract_boundary
 from ginn.extract.grid import Grid
@@ -43,7 +43,7 @@ def _spec(faces):
 def _measure(field, faces):
     g = Grid(np.full(2, -1.0), np.full(2, 1.0), (400, 400))
     vals = field(torch.as_tensor(g.points(), dtype=torch.float64)).reshape(g.shape).numpy().astype(np.float32)
-    v = FlatFacesVerdict(_spec(faces).build())
+    v = FacesVerdict(_spec(faces).build())
     return v, v.measure(SimpleNamespace(boundary=extract_boundary(vals, g)), SimpleNamespace(grid=g), field, None)
 
 
@@ -59,7 +59,7 @@ def test_a_region_without_boundary_is_a_missing_face():
     v, m = _measure(_box(0.0), [{"region": TOP, "normal": [0, 1]},
                                 {"region": {"type": "disk", "center": [0.8, 0.8], "radius": 0.1}, "normal": [1, 0]}])
     assert m["face_angles"][0] == pytest.approx(0.0, abs=0.05) and m["face_angles"][1] is None
-    assert math.isinf(m["face_deviation"]) and "no boundary" in FlatFacesVerdict.describe(v.violation(m))
+    assert math.isinf(m["face_deviation"]) and "no boundary" in FacesVerdict.describe(v.violation(m))
 
 
 def test_spec_checks_the_normal_and_the_angle():
@@ -75,6 +75,78 @@ def test_spec_checks_the_normal_and_the_angle():
 def test_loss_is_one_minus_the_cosine_to_the_face_normal(beta):
     spec = _spec([{"region": {"type": "rectangle", "lo": [-0.5, -0.5], "hi": [0.5, 0.5]}, "normal": [0, 1]}])
     task = make_task(spec, spec.config(None, {"sampling": {"n_domain": 2048, "n_boundary": 64}}))
-    assert [c for c in task.constraints if isinstance(c, FlatFaces)]
+    assert [c for c in task.constraints if isinstance(c, Faces)]
     terms = task.loss_terms(LineField(beta), 0, {"faces", "eikonal"}, torch.Generator().manual_seed(0))
     assert float(terms["faces"].detach()) == pytest.approx(1 - math.cos(math.radians(90 - beta)), abs=1e-6)
+
+
+def _disk(r):
+    return as_field(lambda x: x.norm(dim=-1) - r)
+
+
+EVERYWHERE = {"type": "rectangle", "lo": [-1, -1], "hi": [1, 1]}
+
+
+@pytest.mark.parametrize("surface", [
+    {"type": "disk", "center": [0.04, 0.0], "radius": 0.5},
+    # the same circle as the boundary of the region outside it: the normal reversed, the same face
+    {"type": "difference", "children": [{"type": "rectangle", "lo": [-3, -3], "hi": [3, 3]},
+                                     {"type": "disk", "center": [0.04, 0.0], "radius": 0.5}]},
+])
+def test_a_disk_on_a_shifted_circle(surface):
+    """The circle |x| = 0.5 against the circle of the same radius about (0.04, 0): the largest
+    distance is the shift, 0.04 (at theta = 0 and pi); the largest angle between the radii is
+    asin(0.04 / 0.5) (law of sines, where the radius from the shifted centre is perpendicular to
+    the shift)."""
+    tight, loose, near = ({"region": EVERYWHERE, "surface": surface, **k} for k in (
+        {"angle": 2, "distance": 0.05}, {"angle": 5, "distance": 0.05}, {"angle": 5, "distance": 0.03}))
+    v, m = _measure(_disk(0.5), [tight])
+    assert m["face_distances"][0] == pytest.approx(0.04, abs=2e-4)
+    assert m["face_angles"][0] == pytest.approx(math.degrees(math.asin(0.04 / 0.5)), abs=0.02)
+    assert m["face_deviation"] == pytest.approx(m["face_angles"][0] / 2, rel=1e-9) and v.violation(m) is not None
+    v, m = _measure(_disk(0.5), [loose])
+    assert m["face_deviation"] == pytest.approx(math.degrees(math.asin(0.08)) / 5, abs=0.01) and v.violation(m) is None
+    v, m = _measure(_disk(0.5), [near])
+    assert m["face_deviation"] == pytest.approx(0.04 / 0.03, abs=0.01) and v.violation(m) is not None
+
+
+def test_a_face_on_its_own_circle_and_the_default_distance():
+    v, m = _measure(_disk(0.5), [{"region": TOP, "surface": {"type": "disk", "center": [0, 0], "radius": 0.5}}])
+    assert m["face_distances"][0] < 1e-4 and m["face_angles"][0] < 0.05 and v.violation(m) is None
+    assert v.faces[0].distance == pytest.approx(0.005)  # the interface tolerance times the unit scale (1)
+
+
+def test_spec_asks_for_one_kind_of_face():
+    disk = {"type": "disk", "center": [0, 0], "radius": 0.5}
+    for bad, words in (([{"region": TOP, "normal": [0, 1], "surface": disk}], "give one of normal"),
+                       ([{"region": TOP}], "give one of normal"),
+                       ([{"region": TOP, "normal": [0, 1], "distance": 0.01}], "distance needs surface"),
+                       ([{"region": TOP, "surface": disk, "distance": -1}], "distance")):
+        with pytest.raises(SpecError, match=f"tolerances.faces.*{words}"):
+            _spec(bad)
+
+
+class _Level(torch.nn.Module):
+    """``f = y - b``, the offset ``b`` a parameter: its zero set is the line y = b."""
+
+    def __init__(self, b):
+        super().__init__()
+        self.b = torch.nn.Parameter(torch.tensor(b))
+
+    def forward(self, x, z=None):
+        return x[:, 1] - self.b
+
+
+def test_loss_of_a_face_on_a_surface_moves_the_boundary_onto_it():
+    """The line y = b against the surface y = 0.01 (a half-plane's boundary): the normals agree, so
+    the loss is (1 - cos 2 deg) ((b - 0.01) / 0.005)^2 and its derivative in b is the derivative of
+    that (the boundary moves with b)."""
+    surface = {"type": "halfspace", "point": [0, 0.01], "normal": [0, 1]}
+    spec = _spec([{"region": {"type": "rectangle", "lo": [-0.5, -0.5], "hi": [0.5, 0.5]}, "surface": surface}])
+    task = make_task(spec, spec.config(None, {"sampling": {"n_domain": 2048, "n_boundary": 64}}))
+    field = _Level(-0.02)
+    terms = task.loss_terms(field, 0, {"faces", "eikonal"}, torch.Generator().manual_seed(0))
+    k = 1 - math.cos(math.radians(2.0))
+    assert float(terms["faces"].detach()) == pytest.approx(k * (0.03 / 0.005) ** 2, rel=1e-4)
+    (db,) = torch.autograd.grad(terms["faces"], field.b)
+    assert float(db) == pytest.approx(2 * k * (-0.03) / 0.005**2, rel=1e-4)

@@ -18,7 +18,7 @@ from .containment import DesignRegion, Obstacle, VolumeOutside, containment_floo
 from .curvature import MeanCurvature, Strain
 from .diversity import Diversity, LeastDiversity
 from .eikonal import Eikonal
-from .faces import FlatFaces, FlatFacesVerdict
+from .faces import Faces, FacesVerdict
 from .feature_size import MinGap, MinGapVerdict, MinThickness, MinThicknessVerdict
 from .fillet import MinRadius, MinRadiusVerdict
 from .holes import BETTI_METRICS, HoleTargets, TopologyTargets
@@ -35,10 +35,10 @@ __all__ = [
     "DOMAIN", "OUTSIDE", "OBSTACLE", "INTERFACE", "BAND", "BUILTIN_SETS",
     "Eikonal", "DesignRegion", "Obstacle", "Interface", "Normal", "MeanCurvature", "Strain", "Diversity",
     "Connectedness", "HoleTargets", "VolumeFraction", "MinThickness", "MinGap", "Overhang", "MinRadius", "Area",
-    "FlatFaces", "Attachment",
+    "Faces", "Attachment",
     "InterfaceVerdict", "VolumeOutside", "Connected", "TopologyTargets", "SymmetryVerdict", "LeastDiversity",
     "VolumeFractionVerdict", "MinThicknessVerdict", "MinGapVerdict", "OverhangVerdict", "MinRadiusVerdict", "AreaVerdict",
-    "FlatFacesVerdict", "AttachmentVerdict",
+    "FacesVerdict", "AttachmentVerdict",
     "BETTI_METRICS", "containment_floor", "judged_volume_outside",
     "shape_constraints", "problem_verdicts", "verdicts_of", "describe", "verdict_text",
 ]

@@ -12,7 +12,7 @@ from .containment import DesignRegion, Obstacle, VolumeOutside
 from .curvature import MeanCurvature, Strain
 from .diversity import Diversity, LeastDiversity
 from .eikonal import Eikonal
-from .faces import FlatFaces, FlatFacesVerdict
+from .faces import Faces, FacesVerdict
 from .feature_size import MinGap, MinGapVerdict, MinThickness, MinThicknessVerdict
 from .fillet import MinRadius, MinRadiusVerdict
 from .holes import HoleTargets, TopologyTargets
@@ -35,7 +35,7 @@ TOLERANCE_TERMS: tuple[tuple[str, type[Constraint], type[Verdict]], ...] = (
     ("min_gap", MinGap, MinGapVerdict),
     ("overhang", Overhang, OverhangVerdict),
     ("min_radius", MinRadius, MinRadiusVerdict),
-    ("faces", FlatFaces, FlatFacesVerdict),
+    ("faces", Faces, FacesVerdict),
 )
 
 BUILTIN_VERDICTS: dict[str, type[Verdict]] = {

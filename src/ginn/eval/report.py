@@ -31,7 +31,7 @@ METRIC_LABELS = {
     "overhang_share": "↓ overhanging share of the down-facing boundary",
     "sharp_share": "↓ share of the boundary sharper than the fillet radius",
     "curvature_max": "largest principal curvature |κ|",
-    "face_deviation": "↓ flat faces: largest normal angle / allowed",
+    "face_deviation": "↓ faces: largest angle (distance) / allowed",
     "compliance": "↓ compliance (weighted over the load cases)",
     "max_displacement": "largest displacement",
     "cd2_to_reference": "↓ CD2 to the reference surface",

@@ -152,7 +152,8 @@ RULES: tuple[Rule, ...] = (
     Rule("losses.overhang.weight", "10", lambda g: 10.0,
          "unit normals: no scale, as the prescribed normals (only with `tolerances.overhang`)"),
     Rule("losses.faces.weight", "10", lambda g: 10.0,
-         "`1 - n . t` of unit normals: no scale, as the prescribed normals (only with `tolerances.faces`)"),
+         "`1 - n . t` of unit normals (a face on a surface: its distance part scaled to the same value at its bound): "
+         "no scale, as the prescribed normals (only with `tolerances.faces`)"),
     Rule("losses.fillet.weight", "1", lambda g: 1.0,
          "`relu(kappa r - 1)`: no scale (only with `tolerances.min_radius`)"),
     Rule("losses.attachment.weight", "1", lambda g: 1.0,

@@ -81,20 +81,28 @@ class ReferenceBound:
 
 
 @dataclass(frozen=True)
-class FlatFace:
-    """A flat face: the boundary inside ``region`` has its outward normal within ``angle``
-    degrees of ``normal`` (flat and parallel to the plane with that normal;
-    :mod:`ginn.constraints.faces`).
+class Face:
+    """A prescribed face of the boundary inside ``region`` (:mod:`ginn.constraints.faces`), one of:
+
+    * flat: ``normal`` given; the boundary's outward normal within ``angle`` degrees of it (flat
+      and parallel to the plane with that normal);
+    * on a surface: ``surface`` given; the boundary within ``distance`` of the boundary of the
+      region ``surface`` and its normal within ``angle`` degrees of that surface's normal, either
+      way round (the face lies on the surface, tangent to it: a seat on a pipe, a face round a boss).
 
     Attributes:
         region: where the face is (a region of the problem's space).
-        normal: the face's outward unit normal ``(d,)``.
+        normal: the flat face's outward unit normal ``(d,)``; ``None`` for a face on a surface.
         angle: degrees.
+        surface: the region whose boundary the face lies on; ``None`` for a flat face.
+        distance: the largest distance from ``surface``, in the problem's units (with ``surface``).
     """
 
     region: Region
-    normal: tuple[float, ...]
+    normal: tuple[float, ...] | None = None
     angle: float = 2.0
+    surface: Region | None = None
+    distance: float | None = None
 
 
 @dataclass(frozen=True)
@@ -136,7 +144,7 @@ class Tolerances:
     overhang: Overhang | None = None
     min_radius: CurvatureBound | None = None
     area: Bounds | None = None
-    faces: tuple[FlatFace, ...] = ()
+    faces: tuple[Face, ...] = ()
     reference: ReferenceBound = ReferenceBound()
 
 

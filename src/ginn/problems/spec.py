@@ -29,7 +29,7 @@ from .forced import forced_holes, forced_tunnels
 from .interfaces import INTERFACE_TYPES, InterfaceSpec
 from .nodes import Dir3, Direction, Finite, Fraction, Node, NonNegative, Point, Positive, check_lo_hi, spec_dim
 from .physics_spec import PhysicsSpec
-from .problem import Bounds, CurvatureBound, FeatureSize, FlatFace, Overhang, Problem, ReferenceBound, Tolerances, Topology
+from .problem import Bounds, CurvatureBound, Face, FeatureSize, Overhang, Problem, ReferenceBound, Tolerances, Topology
 from .regions import REGION_TYPES, RegionSpec
 from .symmetric import check_symmetric
 
@@ -134,13 +134,29 @@ def _unit(v) -> tuple[float, ...]:
     return tuple(float(c) / n for c in v)
 
 
-class FlatFaceSpec(Node):
-    """A flat face of the boundary (:class:`~ginn.problems.problem.FlatFace`)."""
+class FaceSpec(Node):
+    """A prescribed face of the boundary (:class:`~ginn.problems.problem.Face`): flat with
+    ``normal``, or on the boundary of the region ``surface``."""
 
     region: RegionSpec = Field(description="where the face is: a region of the problem's space")
-    normal: Direction = Field(description="the face's outward normal (need not be a unit vector)")
+    normal: Direction | None = Field(
+        None, description="a flat face: its outward normal (need not be a unit vector); give normal or surface")
+    surface: RegionSpec | None = Field(
+        None, description="a face on a surface: the region whose boundary the face lies on, tangent to it")
     angle: Annotated[float, Field(gt=0, lt=90, allow_inf_nan=False)] = Field(
-        2.0, description="the largest angle in degrees between the boundary's normal in the region and normal")
+        2.0, description="the largest angle in degrees between the boundary's normal in the region and normal "
+        "(the surface's normal, either way round)")
+    distance: Positive | None = Field(
+        None, description="with surface: the largest distance from the boundary in the region to the surface, "
+        "in the problem's units (default: the interface tolerance)")
+
+    @model_validator(mode="after")
+    def _one_kind(self):
+        if (self.normal is None) == (self.surface is None):
+            raise ValueError("give one of normal (a flat face) and surface (a face on a surface)")
+        if self.distance is not None and self.surface is None:
+            raise ValueError("distance needs surface (a flat face is judged by its normals)")
+        return self
 
 
 class ReferenceBoundSpec(Node):
@@ -188,9 +204,11 @@ class TolerancesSpec(Node):
         "at most 1 / radius in absolute value, up to share (0.01) of the boundary, the interfaces exempt: "
         "{radius: 0.02}; a number is radius")
 
-    faces: list[FlatFaceSpec] = Field(
-        default_factory=list, description="flat faces: [{region: {...}, normal: [0, 0, 1], angle: 2}]: the boundary "
-        "inside each region faces along its normal within angle degrees (flat and parallel to that plane)")
+    faces: list[FaceSpec] = Field(
+        default_factory=list, description="prescribed faces: [{region: {...}, normal: [0, 0, 1], angle: 2}]: the "
+        "boundary inside each region faces along its normal within angle degrees (flat and parallel to that plane); "
+        "[{region: {...}, surface: {...}, angle: 2, distance: 0.005}]: it lies within distance of the surface's "
+        "boundary, its normal within angle degrees of the surface's (tangent to it)")
     area: AreaSpec | None = Field(
         None, description="bounds on the area (2D: length) of each shape's boundary inside the domain, in the "
         "problem's units: {max: 2.5}, {min: 1.0}, or both; a number is the largest area")
@@ -440,6 +458,14 @@ class ProblemSpec(BaseModel):
         return Tolerances(**{**t.model_dump(exclude=set(built)), **built,
                              "connected": t.connected or self.topology.components == 1})
 
+    @staticmethod
+    def _face(f: FaceSpec, path: str, make, interface_tolerance: float) -> Face:
+        region = make(f.region, f"{path}.region")
+        if f.surface is None:
+            return Face(region, _unit(f.normal), float(f.angle))
+        distance = float(f.distance) if f.distance is not None else float(interface_tolerance)
+        return Face(region, None, float(f.angle), make(f.surface, f"{path}.surface"), distance)
+
     def build(self) -> Problem:
         """The :class:`Problem` (loads meshes; checks interfaces and obstacles against the domain).
 
@@ -473,7 +499,7 @@ class ProblemSpec(BaseModel):
             design = csg.Difference(design, *obstacles)
         symmetry = self.symmetry.build()
         unit_scale = float(g.unit_scale) if g.unit_scale is not None else half_longest_side(domain)
-        flat = tuple(FlatFace(make(f.region, f"tolerances.faces[{i}].region"), _unit(f.normal), float(f.angle))
+        flat = tuple(self._face(f, f"tolerances.faces[{i}]", make, self.tolerances.interface * unit_scale)
                      for i, f in enumerate(self.tolerances.faces))
         if symmetry is not None:
             check_symmetric(symmetry, domain, design, faces, self.tolerances.interface * unit_scale)
