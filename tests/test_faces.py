@@ -150,3 +150,21 @@ def test_loss_of_a_face_on_a_surface_moves_the_boundary_onto_it():
     assert float(terms["faces"].detach()) == pytest.approx(k * (0.03 / 0.005) ** 2, rel=1e-4)
     (db,) = torch.autograd.grad(terms["faces"], field.b)
     assert float(db) == pytest.approx(2 * k * (-0.03) / 0.005**2, rel=1e-4)
+
+
+def test_a_ball_on_a_larger_concentric_sphere_3d():
+    """3D: the sphere |x| = 0.5 against the concentric sphere of radius 0.52, in the upper half:
+    every normal along the radius (angle 0), every point 0.02 from it."""
+    spec = validate_spec({"name": "ball", "geometry": {
+        "dim": 3, "domain": {"lo": [-1, -1, -1], "hi": [1, 1, 1]},
+        "interfaces": [{"type": "annulus", "center": [0, 0, -0.9], "normal": [0, 0, -1], "r_inner": 0.02, "r_outer": 0.05}]},
+        "tolerances": {"faces": [{"region": {"type": "box", "lo": [-1, -1, 0.1], "hi": [1, 1, 1]},
+                                  "surface": {"type": "ball", "center": [0, 0, 0], "radius": 0.52}, "distance": 0.03}]}})
+    g = Grid(np.full(3, -1.0), np.full(3, 1.0), (96, 96, 96))
+    field = _disk(0.5)
+    vals = field(torch.as_tensor(g.points(), dtype=torch.float64)).reshape(g.shape).numpy().astype(np.float32)
+    v = FacesVerdict(spec.build())
+    m = v.measure(SimpleNamespace(boundary=extract_boundary(vals, g)), SimpleNamespace(grid=g), field, None)
+    assert m["face_distances"][0] == pytest.approx(0.02, abs=1e-4)
+    assert m["face_angles"][0] < 0.05
+    assert m["face_deviation"] == pytest.approx(0.02 / 0.03, abs=5e-3) and v.violation(m) is None
