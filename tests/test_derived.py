@@ -81,7 +81,8 @@ def test_the_spec_overrides_and_config_yaml_says_what_was_derived(tmp_path):
 
 def test_builtin_specs_state_every_derived_setting():
     """The paper reproductions keep their settings: every derived path is stated by the `paper`
-    preset (or plateau's defaults; its MLP leaves the SIREN frequency unused), while the obstacle
+    preset (or plateau's defaults but its multipliers and learning-rate schedule; its MLP leaves
+    the SIREN frequency unused), while the obstacle
     and bracket state nothing but their shapes and latent range without a preset."""
     for name, preset in (("obstacle", "paper"), ("bracket", "paper"), ("plateau", None)):
         spec = load_spec(name)
@@ -94,8 +95,14 @@ def test_builtin_specs_state_every_derived_setting():
                     "losses.fillet.weight", "losses.faces.weight"}
         if name == "plateau":
             allowed.add("latents.draw")  # acts only with latent codes; Plateau trains one shape
+            # the multipliers and the learning-rate schedule are derived as for every problem
+            allowed |= {"balancing.method", "training.lr_decay", "training.lr_decay_every"}
         assert not spec.build().topology.targets and spec.build().tolerances.volume_fraction is None
-        assert cfg.model.frame == "raw" and cfg.balancing.method == "weighted"
+        assert cfg.model.frame == "raw"
+        assert cfg.balancing.method == ("feasibility" if name == "plateau" else "weighted")
+        if name == "plateau":
+            assert (cfg.training.lr_decay, cfg.training.lr_decay_every) == (0.5, cfg.training.iterations // 3)
+            assert all(spec.config(p).balancing.method == "weighted" for p in ("cpu", "demo"))
         kept = {n.split(" = ")[0] for n in notes}
         # a derived value may coincide with the stated one; what matters is that none is taken from derived alone
         stated = set(flattened(spec.defaults)) | {p for layer in spec.preset_layers(preset) for p in flattened(layer)}
