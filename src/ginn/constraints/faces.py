@@ -155,11 +155,11 @@ class Faces(Constraint):
             if not bool(sel.any()):
                 continue
             v = fields.evaluate(batch.model, p[sel], None if zs is None else zs[sel], grad=True, create_graph=True)
-            g2 = (v.grad * v.grad).sum(-1).clamp_min(1e-24)
-            n = v.grad / g2.sqrt().unsqueeze(-1)
+            n = v.grad / v.grad.norm(dim=-1, keepdim=True).clamp_min(1e-12)
             if t is not None:
                 term = (1.0 - n @ t).mean()
             else:
+                g2 = (v.grad * v.grad).sum(-1).clamp_min(1e-24)
                 s, nu = surface_distance(face.surface, p[sel], _step(batch.setting.problem))
                 s, nu = s.to(v.grad.dtype), nu.to(v.grad.dtype)
                 s1 = s - v.f * (nu * v.grad).sum(-1) / g2
