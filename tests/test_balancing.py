@@ -188,3 +188,41 @@ def test_a_hard_bound_is_raised_by_the_full_factor_until_met():
     b = make_balancer({"volume": LossTerm(weight=1.0)}, BalancingConfig(method="feasibility"),
                       Balance(groups={"volume_fraction": ("volume",)}, hard=("volume_fraction",)))
     assert b.hard == ("volume_fraction",)
+
+
+def test_a_gated_objective_acts_in_proportion_to_the_constraints_targets():
+    """The mean curvature's weight is ``w min(1, eps / m)``: ``m`` the bias-corrected running
+    average of the interface loss (target ``eps = 0.01``); the eikonal's target enforces no
+    constraint of the verdict and does not gate."""
+    terms = {"interface": LossTerm(weight=1.0), "eikonal": LossTerm(weight=1.0), "mean_curvature": LossTerm(weight=2.0)}
+    balance = Balance(targets={"interface": 0.01, "eikonal": 0.01}, groups={"interface": ("interface",)},
+                      gated=("mean_curvature",))
+    b = make_balancer(terms, BalancingConfig(method="feasibility"), balance)
+    assert b.gate_targets == {"interface": 0.01}
+    assert b.weight("mean_curvature") == 2.0  # nothing seen yet
+    b.observe({"interface": 0.04, "eikonal": 5.0}, 0)
+    assert b.gate() == pytest.approx(0.25)  # the first average is the value itself
+    assert b.weight("mean_curvature") == pytest.approx(0.5) and b.weight("eikonal") == 1.0
+    b.observe({"interface": 0.0}, 1)  # (0.99 * 0.01 * 0.04) / (1 - 0.99^2) = 0.0199
+    assert b.gate() == pytest.approx(0.01 / (0.99 * 0.01 * 0.04 / (1 - 0.99 ** 2)))
+    total = b.combine({"interface": torch.tensor(1.0), "mean_curvature": torch.tensor(3.0)}, 2)
+    assert total.item() == pytest.approx(1.0 + 3.0 * 2.0 * b.gate())
+    c = make_balancer(terms, BalancingConfig(method="feasibility"), balance)
+    c.load_state_dict(b.state_dict())
+    assert c.gate() == b.gate() and c.state_dict() == b.state_dict()
+    for step in range(2, 2000):  # the constraint meets its target: full weight
+        b.observe({"interface": 0.001}, step)
+    assert b.gate() == 1.0 and b.weight("mean_curvature") == 2.0
+    assert b.multipliers()["mean_curvature"] == 2.0
+
+
+def test_a_term_of_two_constraints_has_the_larger_factor():
+    """The interface enforces its own constraint and the reference verdict's: a check that finds
+    both violated off track doubles it once, one that finds only the reference so doubles that
+    factor, which then leads."""
+    b = CheckedMultipliers({"interface": LossTerm(weight=1.0)}, {"interface": ("interface",), "reference": ("interface",)})
+    b.on_check({"interface": 3.0, "reference": 3.0}, 5)
+    assert b.on_check({"interface": 3.0, "reference": 3.0}, 4) == {"interface": 2.0, "reference": 2.0}
+    assert b.weight("interface") == 2.0
+    assert b.on_check({"interface": 0.5, "reference": 3.0}, 3) == {"reference": 2.0}
+    assert b.weight("interface") == 4.0

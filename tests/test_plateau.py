@@ -134,6 +134,7 @@ def test_the_reference_verdict_judges_cd2_and_area():
     from ginn.problems import ProblemSpec, load_spec
     from ginn.problems.problem import ReferenceBound
     from ginn.tasks.shape import ShapeTask
+    from ginn.train.balancing import make_balancer
 
     spec = load_spec("plateau")
     problem = spec.build()
@@ -162,3 +163,13 @@ def test_the_reference_verdict_judges_cd2_and_area():
     _, cfg = runs.resolve("plateau", None)
     task = ShapeTask(problem, cfg, "cpu", torch.float32)
     assert [v.name for v in task.verdicts()][-1] == "reference"
+    # the balancer: the curvature objective is gated by the interface, and the reference
+    # verdict's violation raises the interface
+    bal = task.balance()
+    assert bal.gated == ("mean_curvature",) and bal.groups["reference"] == ("interface",)
+    assert bal.groups["interface"] == ("interface",)
+    assert make_balancer(task.terms(), cfg.balancing, bal).gate_targets == {"interface": pytest.approx(0.0025 ** 2)}
+    spec_o, cfg_o = runs.resolve("obstacle", "demo")
+    other = ShapeTask(spec_o.build(), cfg_o, "cpu", torch.float32)
+    assert "reference" not in other.balance().groups  # no curvature objective (weight 0): nothing gated
+    assert make_balancer(other.terms(), cfg_o.balancing, other.balance()).gated == ()

@@ -111,6 +111,10 @@ class Constraint(abc.ABC):
     name: ClassVar[str]
     stage: ClassVar[Stage] = Stage.SAMPLES
     samples: ClassVar[tuple[SampleSet, ...]] = ()
+    #: an objective whose minimisers need not meet the constraints: under ``balancing.method:
+    #: feasibility`` it acts in proportion to how closely the constraint terms meet their targets
+    #: (:mod:`ginn.train.balancing`, "gated objective")
+    gated: ClassVar[bool] = False
 
     def __init__(self, setting: Setting):
         self.setting = setting

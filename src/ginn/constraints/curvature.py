@@ -29,6 +29,7 @@ class MeanCurvature(Constraint):
     name = "mean_curvature"
     stage = Stage.SURFACE
     fn = MeanCurvatureLoss()
+    gated = True  # every plane has zero mean curvature
 
     def loss(self, batch: Batch) -> Tensor:
         v, _ = batch.surface_hessians()

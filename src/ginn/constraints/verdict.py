@@ -65,14 +65,16 @@ class Verdict(abc.ABC):
     :class:`ginn.eval.feasibility.FeasibilityCheck` do not), ``hard`` (the bound has no tolerance
     of its own, being a level of a quantity that is not an error, so that ``value / bound`` near
     1 says nothing of how far off a shape is; the check-driven multipliers raise such a bound's
-    terms by their full factor, :mod:`ginn.train.balancing`). Instances: ``metrics``, the metric
-    names it reads.
+    terms by their full factor, :mod:`ginn.train.balancing`), ``enforced_by`` (for a verdict that
+    is no constraint's own: the loss terms whose multipliers its violation raises, as a
+    constraint's does its terms'). Instances: ``metrics``, the metric names it reads.
     """
 
     name: ClassVar[str]
     on_set: ClassVar[bool] = False
     judges: ClassVar[bool] = True
     hard: ClassVar[bool] = False
+    enforced_by: ClassVar[tuple[str, ...]] = ()
 
     def __init__(self, problem: Problem):
         self.problem = problem

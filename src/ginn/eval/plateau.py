@@ -297,6 +297,9 @@ class ReferenceVerdict(Verdict):
     (default :func:`reference_surface` of the problem's polygon, computed at the first use)."""
 
     name = "reference"
+    # the area is lost where the surface misses the polygon (docs/plateau.md): a violation off
+    # track raises the interface's multiplier
+    enforced_by = ("interface",)
 
     def __init__(self, problem: Problem, reference: tuple[MinimalSurface, float] | None = None):
         super().__init__(problem)

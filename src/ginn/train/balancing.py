@@ -62,6 +62,23 @@ bound violated and not on track. On the 16-shape double-load cantilever (``docs/
 the ``q^2`` rule raised the volume's multiplier from 10 to 17.6 over the run (connectedness's
 went from 10.7 to 171) and left 7 of 16 shapes over the bound; with this rule, 1 of 16.
 
+A *gated objective* (:attr:`Balance.gated`: the mean curvature, whose minimisers need not meet
+the constraints, since every plane has zero mean curvature) acts in proportion to how closely the
+terms of the verdict's constraints meet their targets (:attr:`Balance.targets`)::
+
+    weight_t = w_t lambda_t * min(1, min_i eps_i / m_i)
+
+with ``m_i`` the bias-corrected running average (factor ``AVERAGE``) of each such term ``i`` with
+a positive target ``eps_i``, and full weight once every one meets its target. Given its full
+weight at once, the curvature objective of Plateau's problem flattened the zero set within 50
+iterations of its start and took the surface off the polygon (CD1 0.24 at the next check), and
+the run spent most of its iterations on the way back (``docs/plateau.md``); gated, the surface
+stays on the polygon and moves towards the minimal surface from the first iteration.
+
+A term that enforces several constraints (the interface: its own, and the reference verdict of
+Plateau's problem, whose area is lost where the surface misses the polygon) has the largest of
+their factors.
+
 A *bounded objective* (the diversity, where the spec states ``tolerances.diversity``: the set must
 be at least that diverse, and need not be more) is a constraint of the same kind whose multiplier
 also falls while the bound is met: ``lambda <- lambda * max(q^2, 1/2)`` for ``q < 1``, the mirror
@@ -262,9 +279,11 @@ class CheckedMultipliers(WeightedSum):
     """
 
     GROWTH = 2.0
+    AVERAGE = AdaptiveMultipliers.AVERAGE
 
     def __init__(self, terms: dict[str, LossTerm], groups: dict[str, tuple[str, ...]], objectives=(),
-                 bounded: tuple[str, ...] = (), hard: tuple[str, ...] = ()):
+                 bounded: tuple[str, ...] = (), hard: tuple[str, ...] = (), gated: tuple[str, ...] = (),
+                 targets: dict[str, float] | None = None):
         super().__init__(terms, objectives)
         self.bounded = tuple(bounded)
         self.hard = tuple(hard)
@@ -272,13 +291,36 @@ class CheckedMultipliers(WeightedSum):
         self.groups = {c: ts for c, ts in self.groups.items() if ts}
         self.scale = {c: 1.0 for c in self.groups}  # each constraint's multipliers over their weights
         self.previous: dict[str, float] = {}  # q of each constraint at the last check
+        self.gated = tuple(t for t in gated if t in terms and terms[t].weight > 0)
+        enforcing = {t for ts in self.groups.values() for t in ts}
+        self.gate_targets = {t: float(e) for t, e in (targets or {}).items() if t in enforcing and e > 0} if self.gated else {}
+        self.avg = {t: 0.0 for t in self.gate_targets}  # running averages, not bias-corrected
+        self.seen = {t: 0 for t in self.gate_targets}
 
     def weight(self, term: str) -> float:
         w = self.weights.get(term, 0.0)
-        for c, ts in self.groups.items():
-            if term in ts:
-                return w * self.scale[c]
-        return w
+        if term in self.gated:
+            return w * self.gate()
+        scales = [self.scale[c] for c, ts in self.groups.items() if term in ts]
+        return w * max(scales) if scales else w  # a term of several constraints: the largest demand
+
+    def gate(self) -> float:
+        """The factor of the gated objectives: ``min(1, eps_i / m_i)`` over the enforcing terms
+        with a positive target seen so far (1 before any)."""
+        out = 1.0
+        for t, eps in self.gate_targets.items():
+            n = self.seen[t]
+            if n:
+                m = self.avg[t] / (1.0 - self.AVERAGE ** n)
+                out = min(out, eps / m) if m > 0 else out
+        return out
+
+    def observe(self, losses: dict[str, float], step: int) -> None:
+        for t in self.gate_targets:
+            v = losses.get(t)
+            if v is not None and math.isfinite(v):
+                self.avg[t] = self.AVERAGE * self.avg[t] + (1.0 - self.AVERAGE) * float(v)
+                self.seen[t] += 1
 
     def on_check(self, ratios: dict[str, float | None], remaining: int) -> dict[str, float]:
         """Update from one check's worst ratios ``{constraint: value / bound}`` (None: undefined,
@@ -306,11 +348,16 @@ class CheckedMultipliers(WeightedSum):
         return {k: self.weight(k) for k in self.weights}
 
     def state_dict(self) -> dict:
-        return {"scale": dict(self.scale), "previous": dict(self.previous)}
+        out = {"scale": dict(self.scale), "previous": dict(self.previous)}
+        if self.gate_targets:
+            out.update(avg=dict(self.avg), seen=dict(self.seen))
+        return out
 
     def load_state_dict(self, state: dict) -> None:
         self.scale.update({k: float(v) for k, v in state["scale"].items()})
         self.previous = {k: float(v) for k, v in state["previous"].items()}
+        self.avg.update({k: float(v) for k, v in state.get("avg", {}).items() if k in self.avg})
+        self.seen.update({k: int(v) for k, v in state.get("seen", {}).items() if k in self.seen})
 
 
 @dataclass(frozen=True)
@@ -326,12 +373,15 @@ class Balance:
             diversity): their multipliers also fall while the bound is met.
         hard: the constraints of ``groups`` whose bound has no tolerance (an interval on a
             volume or an area): a violation raises them by the full factor.
+        gated: the objectives that act in proportion to how closely the terms of ``groups`` meet
+            their ``targets`` (:attr:`ginn.constraints.Constraint.gated`), for ``feasibility``.
     """
 
     targets: dict[str, float] = field(default_factory=dict)
     groups: dict[str, tuple[str, ...]] = field(default_factory=dict)
     bounded: tuple[str, ...] = ()
     hard: tuple[str, ...] = ()
+    gated: tuple[str, ...] = ()
 
 
 def make_balancer(terms: dict[str, LossTerm], cfg: BalancingConfig, balance: Balance | None = None) -> WeightedSum:
@@ -342,7 +392,7 @@ def make_balancer(terms: dict[str, LossTerm], cfg: BalancingConfig, balance: Bal
     if cfg.method == "adaptive":
         return AdaptiveMultipliers(terms, b.targets)
     if cfg.method == "feasibility":
-        return CheckedMultipliers(terms, b.groups, cfg.objectives, b.bounded, b.hard)
+        return CheckedMultipliers(terms, b.groups, cfg.objectives, b.bounded, b.hard, b.gated, b.targets)
     return AugmentedLagrangian(terms, cfg)
 
 

@@ -199,15 +199,21 @@ class ShapeTask(Task):
         return ShapeResults(self)
 
     def balance(self) -> Balance:
-        """Each constraint's target, the verdict's constraints with the terms that enforce them,
-        the verdicts that bound an objective (a least diversity) and the hard bounds."""
+        """Each constraint's target, the verdict's constraints with the terms that enforce them
+        (a verdict that is no constraint's own, such as the reference, with its ``enforced_by``),
+        the verdicts that bound an objective (a least diversity), the hard bounds and the gated
+        objectives."""
         groups: dict[str, tuple[str, ...]] = {}
         for c in self.constraints:
             if c.verdict is not None:
                 groups[c.verdict.name] = groups.get(c.verdict.name, ()) + (c.name,)
+        for v in self.verdicts():
+            if v.enforced_by:
+                groups[v.name] = groups.get(v.name, ()) + v.enforced_by
         return Balance(targets={c.name: t for c in self.constraints if (t := c.target()) is not None}, groups=groups,
                        bounded=tuple(c.verdict.name for c in self.constraints if c.bounds_objective()),
-                       hard=tuple(c.verdict.name for c in self.constraints if c.verdict is not None and c.verdict.hard))
+                       hard=tuple(c.verdict.name for c in self.constraints if c.verdict is not None and c.verdict.hard),
+                       gated=tuple(c.name for c in self.constraints if c.gated))
 
     def checker(self) -> FeasibilityCheck:
         """The coarse-grid check of the problem's tolerances (``RESOLUTION['check']``), with the
