@@ -85,6 +85,9 @@ CASES = {
                                                              "structural.cells=30"]),
     "structural, CG warm starts": ("mbb", None, ["training.threads=1", "model.hidden=[16,16]", "structural.cells=30",
                                                  "structural.method=cg"]),
+    "gated curvature objective, reference verdict": ("plateau", None, [
+        "training.threads=1", "model.hidden=[16,16]", "losses.mean_curvature.start=3", "sampling.n_domain=256",
+        "sampling.n_boundary=64", "sampling.n_interface=64", "training.feasibility_checks=3"]),
     "mirror": ("mirror", None, ["training.threads=1", "params.n_samples=64"]),
     "gray-scott": ("gray-scott", "quick", ["training.threads=1", "model.hidden=[16,8]", "latents.n_shapes=2",
                                            "params.grid=16", "params.fine_grid=0", "params.step_reuse=4",

@@ -66,10 +66,11 @@ A *gated objective* (:attr:`Balance.gated`: the mean curvature, whose minimisers
 the constraints, since every plane has zero mean curvature) acts in proportion to how closely the
 terms of the verdict's constraints meet their targets (:attr:`Balance.targets`)::
 
-    weight_t = w_t lambda_t * min(1, min_i eps_i / m_i)
+    weight_t = w_t * min(1, min_i eps_i / m_i)
 
 with ``m_i`` the bias-corrected running average (factor ``AVERAGE``) of each such term ``i`` with
-a positive target ``eps_i``, and full weight once every one meets its target. Given its full
+a positive target ``eps_i``, and full weight once every one meets its target (``metrics.jsonl``
+logs it among the multipliers). Given its full
 weight at once, the curvature objective of Plateau's problem flattened the zero set within 50
 iterations of its start and took the surface off the polygon (CD1 0.24 at the next check), and
 the run spent most of its iterations on the way back (``docs/plateau.md``); gated, the surface
