@@ -97,6 +97,12 @@ from torch import Tensor
 from ..config import BalancingConfig, LossTerm
 
 
+def _debiased(avg: float, n: int, beta: float) -> float:
+    """An exponential average ``avg`` of ``n`` updates with factor ``beta``, bias-corrected (0
+    before any update)."""
+    return avg / (1.0 - beta ** n) if n else 0.0
+
+
 class WeightedSum:
     """``sum_i w_i l_i`` with the configured weights; ``objectives``: the terms that count as
     objectives (the rest are constraints) where it matters (``training.stop_when_feasible``)."""
@@ -223,8 +229,7 @@ class AdaptiveMultipliers(WeightedSum):
 
     def running(self, k: str) -> float:
         """The bias-corrected running average of constraint ``k``."""
-        n = self.seen[k]
-        return self.avg[k] / (1.0 - self.AVERAGE ** n) if n else 0.0
+        return _debiased(self.avg[k], self.seen[k], self.AVERAGE)
 
     def observe(self, losses: dict[str, float], step: int) -> None:
         beta = self.AVERAGE
@@ -310,10 +315,8 @@ class CheckedMultipliers(WeightedSum):
         with a positive target seen so far (1 before any)."""
         out = 1.0
         for t, eps in self.gate_targets.items():
-            n = self.seen[t]
-            if n:
-                m = self.avg[t] / (1.0 - self.AVERAGE ** n)
-                out = min(out, eps / m) if m > 0 else out
+            m = _debiased(self.avg[t], self.seen[t], self.AVERAGE)
+            out = min(out, eps / m) if m > 0 else out
         return out
 
     def observe(self, losses: dict[str, float], step: int) -> None:
