@@ -6,6 +6,7 @@
     python benchmarks/suite.py --iterations 200          # a quick look (not the benchmark)
     python benchmarks/suite.py --set training.lr_decay=0.1  # a candidate default, on every problem
     python benchmarks/suite.py --only obstacle --topology holes=2   # a topology target on every problem
+    python benchmarks/suite.py --make                   # a thickness and a volume bound on every solid
 
 The problems are ``benchmarks/suite/*.yaml``, written the way users write specs: geometry, the
 number of shapes and nothing about training, plus the built-in ``obstacle``, ``bracket``,
@@ -29,6 +30,12 @@ SIGTERM stops the suite after checkpointing the run in progress.
 problem's ``topology`` (``docs/problem-spec.md``): the row's problem is then named with it
 (``obstacle-holes2``, run directory ``obstacle-holes2-s0``), a shape is feasible only with that count, and a
 line under the row counts the shapes per number of holes (2D) or per genus of the exported mesh (3D).
+
+``--make`` adds manufacturing bounds to every problem whose shapes are solid parts (every one but
+plateau, a surface): ``min_thickness`` of ``MAKE_THICKNESS`` times half the domain's longest side
+(a few cells of the evaluation grid, so that the opening measures it) and ``volume_fraction`` at most ``MAKE_VOLUME`` of
+E, both with their derived loss weights. The row's problem is named with ``-make``, and a line under
+the row gives the range of the shapes' thickness_removed and volume_fraction.
 """
 
 from __future__ import annotations
@@ -46,10 +53,19 @@ from ginn import runs
 from ginn.config import deep_merge, parse_set
 from ginn.errors import GinnError, SpecError
 from ginn.problems import ProblemSpec, load_spec
+from ginn.geometry.base import Box
+from ginn.problems.derived import half_longest_side
 from ginn.problems.spec import TopologySpec
 
 HERE = Path(__file__).resolve().parent / "suite"
 BUILTIN = ["obstacle", "bracket", "plateau", "wheel"]
+#: ``--make``: the least thickness, in units of half the domain's longest side (3.2 cells of the 3D
+#: evaluation grid, 128 cells along that side; 12.8 of the 2D one, 512), and the largest volume
+#: fraction of E
+MAKE_THICKNESS = 0.05
+MAKE_VOLUME = 0.5
+#: problems whose shapes are surfaces, not parts: ``--make`` leaves them out
+SURFACES = ("plateau",)
 
 
 def problems() -> dict[str, str]:
@@ -84,8 +100,19 @@ def with_topology(spec: ProblemSpec, targets: dict[str, int]) -> ProblemSpec:
     return spec.model_copy(update={"topology": topo, "name": f"{spec.name}-{label}"})
 
 
+def with_make(spec: ProblemSpec) -> ProblemSpec:
+    """``spec`` with ``min_thickness`` ``MAKE_THICKNESS`` times half the domain's longest side and
+    ``volume_fraction`` at most ``MAKE_VOLUME`` added to its tolerances (a bound the spec states
+    already is kept), named ``NAME-make``."""
+    scale = half_longest_side(Box(tuple(spec.geometry.domain.lo), tuple(spec.geometry.domain.hi)))
+    tol = spec.tolerances.model_dump(exclude_none=True)
+    tol.setdefault("min_thickness", {"size": MAKE_THICKNESS * float(scale)})
+    tol.setdefault("volume_fraction", {"max": MAKE_VOLUME})
+    return spec.model_copy(update={"tolerances": type(spec.tolerances).model_validate(tol), "name": f"{spec.name}-make"})
+
+
 def run_one(problem: str, seed: int, out: Path, iterations: int | None, threads: int, resolution: int | None,
-            sets: dict | None = None, topology: dict[str, int] | None = None) -> dict | None:
+            sets: dict | None = None, topology: dict[str, int] | None = None, make: bool = False) -> dict | None:
     """Train and evaluate one (problem, seed); the row of the table as a dict (None: the training
     was interrupted)."""
     over: dict = {"seed": seed, "training": {"threads": threads}}
@@ -94,6 +121,8 @@ def run_one(problem: str, seed: int, out: Path, iterations: int | None, threads:
     if sets:
         over = deep_merge(over, sets)
     spec = with_topology(as_user_spec(load_spec(problem)), topology or {})
+    if make:
+        spec = with_make(spec)
     head = {"problem": str(Path(problem).resolve()) if problem.endswith(".yaml") else spec.name}
     cfg = spec.config(None, head, over)
     t0 = time.perf_counter()
@@ -117,7 +146,24 @@ def run_one(problem: str, seed: int, out: Path, iterations: int | None, threads:
             "minutes": wall / 60.0, "iterations": outcome.step,
             "objective": objective(metrics["shapes"]),
             "holes": [m.get("b1_in_design_region") for m in metrics["shapes"]],
-            "genus": [m.get("genus") for m in metrics["shapes"]]}
+            "genus": [m.get("genus") for m in metrics["shapes"]],
+            "thickness_removed": _values(metrics["shapes"], "thickness_removed"),
+            "volume_fraction": _values(metrics["shapes"], "volume_fraction")}
+
+
+def _values(shapes: list[dict], key: str) -> list[float] | None:
+    """``[least, largest]`` of a metric over the shapes (None where no shape has it)."""
+    v = [m[key] for m in shapes if m.get(key) is not None]
+    return [min(v), max(v)] if v else None
+
+
+def make_line(r: dict) -> str:
+    """``  thickness removed 0 to 0.0031, volume fraction 0.21 to 0.48`` under a ``--make`` row."""
+    parts = []
+    for key, label in (("thickness_removed", "thickness removed"), ("volume_fraction", "volume fraction")):
+        v = r.get(key)
+        parts.append(f"{label} –" if not v else f"{label} {v[0]:.3g} to {v[1]:.3g}")
+    return "  " + ", ".join(parts)
 
 
 def objective(shapes: list[dict]) -> dict | None:
@@ -182,9 +228,12 @@ def main(argv: list[str] | None = None) -> int:
                    help="a setting applied to every problem (to measure a candidate default; not the benchmark)")
     p.add_argument("--topology", action="append", default=[], metavar="KEY=N",
                    help="a topology target added to every problem: holes=N (2D), tunnels=N, cavities=N (3D)")
+    p.add_argument("--make", action="store_true",
+                   help=f"add min_thickness {MAKE_THICKNESS} x half the domain's longest side and volume_fraction <= {MAKE_VOLUME} to every "
+                        f"problem but the surfaces ({', '.join(SURFACES)}), which it leaves out")
     args = p.parse_args(argv)
     suite = problems()
-    names = args.only or list(suite)
+    names = args.only or [n for n in suite if not (args.make and n in SURFACES)]
     unknown = [n for n in names if n not in suite]
     if unknown:
         print(f"--only: unknown problem(s) {', '.join(unknown)} (the suite: {', '.join(suite)})", file=sys.stderr)
@@ -201,7 +250,11 @@ def main(argv: list[str] | None = None) -> int:
             print(f"--topology: {item!r} is not holes=N, tunnels=N or cavities=N (N a whole number)", file=sys.stderr)
             return 2
         topology[key] = int(value)
-    tag = "".join(f"-{k}{v}" for k, v in sorted(topology.items()))
+    if args.make and any(n in SURFACES for n in names):
+        print(f"--make: {', '.join(n for n in names if n in SURFACES)} is a surface, not a part; leave it out of --only",
+              file=sys.stderr)
+        return 2
+    tag = "".join(f"-{k}{v}" for k, v in sorted(topology.items())) + ("-make" if args.make else "")
     out = Path(args.out)
     print("| problem | seed | feasible | held-out latents feasible | worst CD1 (bound) | worst vol outside E | worst vol_out "
           "| diversity | shape change per unit latent (max) | topology changes | objective | minutes |")
@@ -211,7 +264,8 @@ def main(argv: list[str] | None = None) -> int:
         for seed in args.seeds:
             run_dir = out / f"{name}{tag}-s{seed}"
             try:
-                r = run_one(suite[name], seed, run_dir, args.iterations, args.threads, args.resolution, sets, topology)
+                r = run_one(suite[name], seed, run_dir, args.iterations, args.threads, args.resolution, sets, topology,
+                            args.make)
             except GinnError as e:
                 print(f"{name}: {e}", file=sys.stderr)
                 return 2
@@ -223,6 +277,8 @@ def main(argv: list[str] | None = None) -> int:
             print(format_row(r), flush=True)
             if topology:
                 print(topology_line(r), flush=True)
+            if args.make:
+                print(make_line(r), flush=True)
             record(out / "suite.json", r)
     ok = sum(r["feasible"] == r["shapes"] for r in rows)
     print(f"every shape feasible in {ok} of {len(rows)} (problem, seed) pairs ({100 * ok / max(len(rows), 1):.0f} %)")

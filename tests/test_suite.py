@@ -99,3 +99,28 @@ def test_the_objective_column(suite):
     beams = [{"compliance": 150.1}, {"compliance": 180.0}, {"compliance": None}]
     assert suite.objective_text(suite.objective(beams)) == "compliance 150.1 to 180"
     assert suite.objective([{"interface_cd1": 1e-3}]) is None and suite.objective_text(None) == "–"
+
+
+def test_make_adds_a_thickness_and_a_volume_bound(suite, tmp_path, capsys):
+    from ginn.problems import load_spec
+    from ginn.problems.spec import validate_spec
+
+    hook = suite.with_make(load_spec(str(ROOT / "benchmarks" / "suite" / "hook-2d.yaml")))
+    assert hook.name == "hook-2d-make"
+    tol = hook.build().tolerances
+    # half the domain's longest side is 0.7
+    assert tol.min_thickness.size == pytest.approx(0.05 * 0.7) and tol.volume_fraction.max == 0.5
+    assert validate_spec(hook.model_dump(mode="json", exclude_none=True, by_alias=True)).name == "hook-2d-make"
+    # a bound the spec states is kept
+    make = load_spec(str(ROOT / "benchmarks" / "feature" / "bracket-make.yaml"))
+    kept = suite.with_make(make).build().tolerances
+    assert kept.min_thickness.size == pytest.approx(0.02) and kept.volume_fraction.max == 0.3
+    assert suite.make_line({"thickness_removed": [0.0, 0.0031], "volume_fraction": [0.21, 0.48]}) == \
+        "  thickness removed 0 to 0.0031, volume fraction 0.21 to 0.48"
+    assert suite.main(["--make", "--only", "plateau"]) == 2
+    assert "surface" in capsys.readouterr().err
+    assert suite.main(["--make", "--only", "hook-2d", "--iterations", "2", "--resolution", "32", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[2].startswith("| hook-2d-make | 0 | ") and out[3].startswith("  thickness removed ")
+    row = json.loads((tmp_path / "suite.json").read_text())[0]
+    assert (tmp_path / "hook-2d-make-s0").is_dir() and 0 <= row["volume_fraction"][0] <= row["volume_fraction"][1] <= 1
