@@ -196,3 +196,19 @@ def test_a_structural_problem_shows_the_strain_energy_and_the_compliance(tmp_pat
     assert abs(float(np.median(zs)) - np.log10(0.25)) < 0.01
     c = float(re.search(r"compliance ([0-9.]+)", layout["annotations"][0]["text"]).group(1))
     assert c == pytest.approx(2.0, rel=0.01)
+
+
+def test_the_verdict_beside_the_picture_lists_every_bound_it_judges():
+    """Besides CD1, the volume outside E, the pieces and the volume fraction, each other verdict of
+    the problem shows how much of its bound the shape uses."""
+    from ginn.problems import validate_spec
+    from ginn.viz.explorer import _verdict
+
+    spec = {"name": "bar", "geometry": {"dim": 2, "domain": {"lo": [-1, -1], "hi": [1, 1]},
+            "interfaces": [{"type": "segment", "a": [-0.5, 0.0], "b": [0.5, 0.0], "normal": [0, 1]}]},
+            "tolerances": {"min_thickness": {"size": 0.1, "removed": 0.02}}}
+    problem = validate_spec(spec).build()
+    text = _verdict({"interface_cd1": 1e-3, "b0_in_design_region": 1, "thickness_removed": 0.005}, problem)
+    assert "min_thickness: 25 % of its bound" in text.split("<br>") and "CD1 1.00e-03" in text
+    text = _verdict({"interface_cd1": 1e-3, "b0_in_design_region": 1, "thickness_removed": 0.03}, problem)
+    assert "min_thickness: 150 % of its bound" in text.split("<br>")

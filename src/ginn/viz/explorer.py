@@ -19,7 +19,7 @@ element grid, averaged over blocks of 2 x 2 elements for the page, logarithmic c
 scale for every position) and its compliance beside the verdict.
 
 Beside the picture: the shape's feasibility verdict (``ginn.eval.feasibility``) with its CD1, volume
-outside E and number of pieces: with a ``judge`` (what shape runs pass: ``ginn eval``'s,
+outside E and number of pieces, and the share of its bound each other verdict uses: with a ``judge`` (what shape runs pass: ``ginn eval``'s,
 :class:`ginn.eval.latent_space.LatentJudge`) the verdict ``ginn eval`` gives that code, else an
 estimate on the picture's own grid, marked as such.
 
@@ -39,7 +39,8 @@ import torch
 from torch import Tensor
 
 from ..constraints.compliance import ComplianceReport
-from ..eval.feasibility import FEASIBILITY_METRICS, FeasibilityCheck, judged_volume_outside, shape_violations, verdict_text
+from ..eval.feasibility import (FEASIBILITY_METRICS, FeasibilityCheck, judged_volume_outside, ratios, shape_violations,
+                               verdict_text)
 from ..eval.metrics import extract_shape, prepare_context, shape_metrics
 from ..eval.reference.minimal_surface import plateau_reference
 from ..eval.results import ShapeMetrics
@@ -123,6 +124,10 @@ def explorer_latents(Z: Tensor | None, steps: int, box: tuple[float, float] | No
     return ExplorerLatents(codes, labels, [False] * len(codes), (n, n))
 
 
+#: the verdicts whose values :func:`_verdict` shows with their own lines
+SHOWN = ("interface", "volume_outside", "connected", "volume_fraction")
+
+
 def _verdict(m: ShapeMetrics, problem: Problem, judge: FeasibilityCheck | None = None) -> str:
     verdicts = None if judge is None else judge.verdicts
     lines = verdict_text(shape_violations(m, problem, verdicts), verdicts or ()).replace(", ", "; ").split("; ")
@@ -137,6 +142,10 @@ def _verdict(m: ShapeMetrics, problem: Problem, judge: FeasibilityCheck | None =
     if bounds is not None and frac is not None:
         lines.append(f"volume fraction of E {frac:.3f} (bounds {bounds.min if bounds.min is not None else 0:g} to "
                      f"{bounds.max if bounds.max is not None else 1:g})")
+    # the other verdicts (thickness, overhang, faces, Plateau's reference, ...): how much of the bound is used
+    for name, r in ratios(m, problem, verdicts).items():
+        if name not in SHOWN:
+            lines.append(f"{name}: {100 * r:.0f} % of its bound" if math.isfinite(r) else f"{name}: undefined")
     return "<br>".join(lines)
 
 
