@@ -52,8 +52,8 @@ from pydantic import ValidationError
 from ginn import runs
 from ginn.config import deep_merge, parse_set
 from ginn.errors import GinnError, SpecError
-from ginn.problems import ProblemSpec, load_spec
 from ginn.geometry.base import Box
+from ginn.problems import ProblemSpec, load_spec
 from ginn.problems.derived import half_longest_side
 from ginn.problems.spec import TopologySpec
 
@@ -229,8 +229,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--topology", action="append", default=[], metavar="KEY=N",
                    help="a topology target added to every problem: holes=N (2D), tunnels=N, cavities=N (3D)")
     p.add_argument("--make", action="store_true",
-                   help=f"add min_thickness {MAKE_THICKNESS} x half the domain's longest side and volume_fraction <= {MAKE_VOLUME} to every "
-                        f"problem but the surfaces ({', '.join(SURFACES)}), which it leaves out")
+                   help=f"add min_thickness {MAKE_THICKNESS} x half the domain's longest side and volume_fraction <= "
+                        f"{MAKE_VOLUME} to every problem but the surfaces ({', '.join(SURFACES)}), which it leaves out")
     args = p.parse_args(argv)
     suite = problems()
     names = args.only or [n for n in suite if not (args.make and n in SURFACES)]

@@ -39,8 +39,7 @@ import torch
 from torch import Tensor
 
 from ..constraints.compliance import ComplianceReport
-from ..eval.feasibility import (FEASIBILITY_METRICS, FeasibilityCheck, judged_volume_outside, ratios, shape_violations,
-                               verdict_text)
+from ..eval.feasibility import FEASIBILITY_METRICS, FeasibilityCheck, judged_volume_outside, ratios, shape_violations, verdict_text
 from ..eval.metrics import extract_shape, prepare_context, shape_metrics
 from ..eval.reference.minimal_surface import plateau_reference
 from ..eval.results import ShapeMetrics
