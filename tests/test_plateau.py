@@ -150,6 +150,10 @@ def test_the_reference_verdict_judges_cd2_and_area():
     assert on["cd2_to_reference"] <= 1e-6 and abs(on["area_relative_error"]) <= 1e-9
     assert verdict.violation(on) is None and verdict.ratio(on) <= 1e-4
     assert abs(off["cd2_to_reference"] - np.sqrt(2) * 0.03) <= 1e-6 and abs(off["area_relative_error"]) <= 1e-9
+    # the whole evaluation of the last shape measured, for ginn eval's report (only for its code)
+    full = verdict.last(torch.tensor([1.0]))
+    assert full["cd2_to_reference"] == off["cd2_to_reference"] and full["area"] == pytest.approx(1.0, abs=1e-9)
+    assert full["reference_area"] == 1.0 and verdict.last(torch.tensor([0.0])) is None and verdict.last(None) is None
     bad = verdict.violation(off)
     assert bad is not None and verdict.ratio(off) == pytest.approx(np.sqrt(2) * 1.5, rel=1e-5)
     assert ReferenceVerdict.describe(bad) == "reference: CD2 0.0424 > 0.02"

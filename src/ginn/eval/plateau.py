@@ -287,6 +287,10 @@ def evaluate_plateau(
     }
 
 
+def _code(z: Tensor | None) -> tuple[float, ...] | None:
+    return None if z is None else tuple(float(v) for v in z.detach().cpu())
+
+
 class ReferenceVerdict(Verdict):
     """A problem with a reference solution (``reference: minimal-surface``): each shape's surface
     within ``tolerances.reference`` of it, the CD2 between the two surfaces and the relative
@@ -306,12 +310,22 @@ class ReferenceVerdict(Verdict):
         self.metrics = ("cd2_to_reference", "area_relative_error")
         self.bound = problem.tolerances.reference
         self._reference = reference
+        self._last: tuple[tuple[float, ...] | None, dict[str, Any]] | None = None
 
     def measure(self, shape, context, field, z) -> dict[str, Any]:
         if self._reference is None:
             self._reference = reference_surface(gamma_of(self.problem))
-        m = evaluate_plateau(field, self.problem, reference=self._reference, z=None if z is None else torch.as_tensor(z).reshape(-1))
+        z = None if z is None else torch.as_tensor(z).reshape(-1)
+        m = evaluate_plateau(field, self.problem, reference=self._reference, z=z)
+        self._last = (_code(z), m)
         return {k: m[k] for k in ("cd2_to_reference", "area_relative_error")}
+
+    def last(self, z: Tensor | None) -> dict[str, Any] | None:
+        """The whole :func:`evaluate_plateau` of the last shape measured, if it was that of the code
+        ``z`` (None: a single shape), else None: ``ginn eval`` reports it without measuring again."""
+        if self._last is None or self._last[0] != _code(None if z is None else torch.as_tensor(z).reshape(-1)):
+            return None
+        return dict(self._last[1])
 
     def _parts(self, metrics: Mapping) -> tuple[float, float] | None:
         cd2, err = metrics.get("cd2_to_reference"), metrics.get("area_relative_error")

@@ -14,7 +14,7 @@ from ...config import default_resolution
 from ...constraints import verdict_text
 from ...errors import ConfigError, GinnError
 from ...eval.latent_space import LatentJudge, LatentSurvey, axis_paths, survey_latents
-from ...eval.plateau import evaluate_plateau
+from ...eval.plateau import ReferenceVerdict, evaluate_plateau
 from ...eval.results import FeasibilitySummary, ShapeEvaluation
 from ...eval.shapes import evaluate_shapes
 from ...extract.export import CONTOUR_FORMATS, export_shapes, latent_label, shape_boundary
@@ -93,13 +93,17 @@ class ShapeResults(Results):
         z -> shape (:mod:`ginn.eval.latent_space`); the comparison with the reference surface where
         the problem has one."""
         res_ = self._checked(resolution or default_resolution("eval", self.problem.dim), 64)
-        res = evaluate_shapes(model, self.task.Z, self.problem, res_, verdicts=self.task.verdicts())
+        verdicts = self.task.verdicts()
+        res = evaluate_shapes(model, self.task.Z, self.problem, res_, verdicts=verdicts)
         if self.task.Z is not None and heldout != 0:
             survey = self.survey(model, res_, heldout)
             res.feasibility.heldout = survey.summary
             res.latent_space = survey.to_json()
         if self.problem.reference == "minimal-surface":
-            res.reference.update(evaluate_plateau(model, self.problem))
+            # the reference verdict measured the single shape already
+            ref = next((v for v in verdicts if isinstance(v, ReferenceVerdict)), None)
+            full = ref.last(None) if ref is not None and self.task.Z is None else None
+            res.reference.update(full if full is not None else evaluate_plateau(model, self.problem))
         return res
 
     def judge(self, resolution: int | None = None) -> LatentJudge:
