@@ -212,3 +212,8 @@ def test_the_verdict_beside_the_picture_lists_every_bound_it_judges():
     assert "min_thickness: 25 % of its bound" in text.split("<br>") and "CD1 1.00e-03" in text
     text = _verdict({"interface_cd1": 1e-3, "b0_in_design_region": 1, "thickness_removed": 0.03}, problem)
     assert "min_thickness: 150 % of its bound" in text.split("<br>")
+    # a hole target is a count, not a share of a bound: only its violation is shown
+    holes = validate_spec({**spec, "topology": {"holes": 1}}).build()
+    met = {"interface_cd1": 1e-3, "b0_in_design_region": 1, "thickness_removed": 0.0, "b1_in_design_region": 1}
+    assert "topology" not in _verdict(met, holes)
+    assert "topology" in _verdict({**met, "b1_in_design_region": 2}, holes)

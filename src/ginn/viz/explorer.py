@@ -19,7 +19,8 @@ element grid, averaged over blocks of 2 x 2 elements for the page, logarithmic c
 scale for every position) and its compliance beside the verdict.
 
 Beside the picture: the shape's feasibility verdict (``ginn.eval.feasibility``) with its CD1, volume
-outside E and number of pieces, and the share of its bound each other verdict uses: with a ``judge`` (what shape runs pass: ``ginn eval``'s,
+outside E and number of pieces, and the share of its bound that each other verdict uses (not the
+topology's counts): with a ``judge`` (what shape runs pass: ``ginn eval``'s,
 :class:`ginn.eval.latent_space.LatentJudge`) the verdict ``ginn eval`` gives that code, else an
 estimate on the picture's own grid, marked as such.
 
@@ -123,8 +124,9 @@ def explorer_latents(Z: Tensor | None, steps: int, box: tuple[float, float] | No
     return ExplorerLatents(codes, labels, [False] * len(codes), (n, n))
 
 
-#: the verdicts whose values :func:`_verdict` shows with their own lines
-SHOWN = ("interface", "volume_outside", "connected", "volume_fraction")
+#: the verdicts :func:`_verdict` does not list by the share of their bound: those it shows with their
+#: own lines, and the topology, a count against a target (its violation names the counts)
+NOT_LISTED = ("interface", "volume_outside", "connected", "volume_fraction", "topology")
 
 
 def _verdict(m: ShapeMetrics, problem: Problem, judge: FeasibilityCheck | None = None) -> str:
@@ -143,7 +145,7 @@ def _verdict(m: ShapeMetrics, problem: Problem, judge: FeasibilityCheck | None =
                      f"{bounds.max if bounds.max is not None else 1:g})")
     # the other verdicts (thickness, overhang, faces, Plateau's reference, ...): how much of the bound is used
     for name, r in ratios(m, problem, verdicts).items():
-        if name not in SHOWN:
+        if name not in NOT_LISTED:
             lines.append(f"{name}: {100 * r:.0f} % of its bound" if math.isfinite(r) else f"{name}: undefined")
     return "<br>".join(lines)
 
