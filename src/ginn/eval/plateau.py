@@ -287,8 +287,9 @@ def evaluate_plateau(
     }
 
 
-def _code(z: Tensor | None) -> tuple[float, ...] | None:
-    return None if z is None else tuple(float(v) for v in z.detach().cpu())
+def _code(z) -> tuple[float, ...] | None:
+    """A latent code as a hashable key (None: a single shape)."""
+    return None if z is None else tuple(float(v) for v in torch.as_tensor(z).detach().reshape(-1).cpu())
 
 
 class ReferenceVerdict(Verdict):
@@ -323,7 +324,7 @@ class ReferenceVerdict(Verdict):
     def last(self, z: Tensor | None) -> dict[str, Any] | None:
         """The whole :func:`evaluate_plateau` of the last shape measured, if it was that of the code
         ``z`` (None: a single shape), else None: ``ginn eval`` reports it without measuring again."""
-        if self._last is None or self._last[0] != _code(None if z is None else torch.as_tensor(z).reshape(-1)):
+        if self._last is None or self._last[0] != _code(z):
             return None
         return dict(self._last[1])
 
