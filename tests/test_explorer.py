@@ -217,3 +217,21 @@ def test_the_verdict_beside_the_picture_lists_every_bound_it_judges():
     met = {"interface_cd1": 1e-3, "b0_in_design_region": 1, "thickness_removed": 0.0, "b1_in_design_region": 1}
     assert "topology" not in _verdict(met, holes)
     assert "topology" in _verdict({**met, "b1_in_design_region": 2}, holes)
+
+
+def test_the_text_beside_the_picture_is_wrapped_to_the_margin():
+    """Every line fits the box's width, no word is lost or split, a bold or italic line stays so on
+    each piece, and wrapping again changes nothing."""
+    from ginn.viz.explorer import NOTE_WIDTH, note, wrap_note
+
+    text = ("<b>latent 0.25</b><br>feasible<br>volume outside E off the interfaces 1.23e-03 (bound 1.00e-03)<br>"
+            "<i>estimate on the picture's grid of 256 cells (ginn eval judges finer)</i>")
+    wrapped = note(text)["text"]
+    lines = wrapped.split("<br>")
+    assert all(len(re.sub(r"</?[bi]>", "", t)) <= NOTE_WIDTH for t in lines)
+    assert lines[:4] == ["<b>latent 0.25</b>", "feasible", "volume outside E off the interfaces",
+                         "1.23e-03 (bound 1.00e-03)"]
+    assert all(t.startswith("<i>") and t.endswith("</i>") for t in lines[4:]) and len(lines) == 6
+    assert re.sub(r"</?[bi]>", "", wrapped).replace("<br>", " ").split() == \
+        re.sub(r"</?[bi]>", "", text).replace("<br>", " ").split()
+    assert wrap_note(wrapped) == wrapped

@@ -32,6 +32,8 @@ from __future__ import annotations
 
 import json
 import math
+import re
+import textwrap
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -384,7 +386,7 @@ def write_explorer(field: Field, Z: Tensor | None, problem: Problem, path: str |
     fig = go.Figure(data=[*frames[0].data, *_problem_traces(problem, res)], frames=frames if len(frames) > 1 else None)
     lo, hi = problem.domain.lo, problem.domain.hi
     layout: dict = {"title": {"text": title}, "annotations": [note(frames[0].layout.annotations[0].text)],
-                    "margin": {"r": 260}, "height": 620, "legend": {"orientation": "h", "y": -0.02}}
+                    "margin": {"r": NOTE_MARGIN}, "height": 620, "legend": {"orientation": "h", "y": -0.02}}
     if d == 2:
         layout["xaxis"] = {"range": [lo[0], hi[0]], "constrain": "domain"}
         layout["yaxis"] = {"range": [lo[1], hi[1]], "scaleanchor": "x", "scaleratio": 1}
@@ -423,9 +425,29 @@ def write_page(fig, lat: ExplorerLatents, names: list[str], path: str | Path, ti
     return path
 
 
+#: the right margin of a page (px) and the characters per line of the text box in it (at 12 px a
+#: character is about 6.5 px wide)
+NOTE_MARGIN = 300
+NOTE_WIDTH = 40
+
+
+def wrap_note(text: str, width: int = NOTE_WIDTH) -> str:
+    """``text``'s ``<br>``-separated lines broken at spaces to at most ``width`` characters (a word
+    longer than that stays whole); a line in one ``<b>`` or ``<i>`` keeps it on every piece.
+    Wrapping a wrapped text changes nothing."""
+    out = []
+    for line in text.split("<br>"):
+        m = re.fullmatch(r"<([bi])>(.*)</\1>", line)
+        body, tag = (m.group(2), m.group(1)) if m else (line, None)
+        parts = textwrap.wrap(body, width, break_long_words=False, break_on_hyphens=False) or [""]
+        out += [f"<{tag}>{p}</{tag}>" if tag else p for p in parts]
+    return "<br>".join(out)
+
+
 def note(text: str) -> dict:
-    """A text box right of the plot (the verdict beside the picture)."""
-    return {"text": text, "xref": "paper", "yref": "paper", "x": 1.02, "y": 1.0, "xanchor": "left", "yanchor": "top",
+    """A text box right of the plot (the verdict beside the picture), its lines wrapped to fit the
+    margin :data:`NOTE_MARGIN`."""
+    return {"text": wrap_note(text), "xref": "paper", "yref": "paper", "x": 1.02, "y": 1.0, "xanchor": "left", "yanchor": "top",
             "align": "left", "showarrow": False, "font": {"size": 12}}
 
 

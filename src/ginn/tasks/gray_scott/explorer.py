@@ -9,7 +9,7 @@ import numpy as np
 from torch import Tensor, nn
 
 from ...config import GSParams
-from ...viz.explorer import ExplorerLatents, add_sliders, explorer_latents, note, write_page
+from ...viz.explorer import NOTE_MARGIN, ExplorerLatents, add_sliders, explorer_latents, note, write_page
 from .checks import Thresholds, sample_fields
 from .solver import relative_residual
 
@@ -44,7 +44,7 @@ def write_pattern_explorer(model: nn.Module, Z: Tensor, params: GSParams, path: 
         names.append(name)
     fig = go.Figure(data=[frames[0].data[0]], frames=frames if len(frames) > 1 else None)
     layout: dict = {"title": {"text": title}, "annotations": [note(frames[0].layout.annotations[0].text)],
-                    "margin": {"r": 300}, "height": 620, "xaxis": {"range": [0, 1], "constrain": "domain"},
+                    "margin": {"r": NOTE_MARGIN}, "height": 620, "xaxis": {"range": [0, 1], "constrain": "domain"},
                     "yaxis": {"range": [0, 1], "scaleanchor": "x", "scaleratio": 1}}
     add_sliders(layout, lat, names)
     fig.update_layout(**layout)

@@ -9,7 +9,7 @@ import numpy as np
 from torch import nn
 
 from ...config import MirrorParams
-from ...viz.explorer import ExplorerLatents, note, write_page
+from ...viz.explorer import NOTE_MARGIN, ExplorerLatents, note, write_page
 from .optics import profile
 
 __all__ = ["write_mirror_view"]
@@ -28,7 +28,7 @@ def write_mirror_view(model: nn.Module, params: MirrorParams, path: str | Path, 
         go.Scatter(x=x, y=exact, mode="lines", name="exact x^2 / 4F", line={"dash": "dash", "color": "black"}),
         go.Scatter(x=[0.0], y=[params.focus], mode="markers", name="focus", marker={"symbol": "star", "size": 14}),
     ])
-    fig.update_layout(title={"text": title}, height=560, margin={"r": 300},
+    fig.update_layout(title={"text": title}, height=560, margin={"r": NOTE_MARGIN},
                       annotations=[note(f"<b>mirror</b><br>max |h - exact| {err:.3g}<br>focus height {params.focus:g}")],
                       yaxis={"scaleanchor": "x", "scaleratio": 1})
     lat = ExplorerLatents([None], ["the mirror"], [True])
