@@ -129,38 +129,3 @@ def test_segments_leave_a_thinner_solid_by_known_depths(w, expected):
     assert [c for c in task.constraints if isinstance(c, MinGap)]
     assert _loss(task, _Slab(w, -1.0), "gap") == pytest.approx(expected, abs=1e-5)
     assert _loss(task, _Slab(w, -1.0), "thickness") == pytest.approx(0.0, abs=1e-7)  # the solid is wide
-
-
-class _Walls(torch.nn.Module):
-    """The signed distance of the slab ``lo <= y <= hi``; the walls are parameters (``fixed``
-    names one held constant)."""
-
-    def __init__(self, lo, hi, fixed=None):
-        super().__init__()
-        self.lo = torch.nn.Parameter(torch.tensor(lo), requires_grad=fixed != "lo")
-        self.hi = torch.nn.Parameter(torch.tensor(hi), requires_grad=fixed != "hi")
-
-    def forward(self, x, z=None):
-        return torch.maximum(self.lo - x[:, 1], x[:, 1] - self.hi)
-
-
-def _wall_grads(model, name="thickness"):
-    task = make_task(_spec(min_thickness=0.1, min_gap=0.1),
-                     _spec(min_thickness=0.1).config(None, {"sampling": {"n_domain": 2048, "n_boundary": 64}}))
-    terms = task.loss_terms(model, 0, {name, "eikonal"}, torch.Generator().manual_seed(0))
-    params = [p for p in (model.lo, model.hi) if p.requires_grad]
-    return torch.autograd.grad(terms[name], params)
-
-
-def test_segments_push_both_walls_of_a_thin_slab_apart():
-    """A slab 0.04 thick, ball of diameter 0.1: 3 of the 4 depths per surface point leave the
-    solid, each by ``s - w`` with slope 1 in each wall. Each violated depth pushes both walls, the
-    far one through the field and the near one through the surface point, so each wall's gradient
-    is 3/4 outward whichever wall the points lie on, and still 3/4 with the other wall held fixed.
-    With the far side alone it was the share of the points on the other wall times 3/4."""
-    g_lo, g_hi = _wall_grads(_Walls(-0.02, 0.02))
-    assert float(g_lo) == pytest.approx(0.75, abs=1e-4) and float(g_hi) == pytest.approx(-0.75, abs=1e-4)
-    (g_hi,) = _wall_grads(_Walls(-0.02, 0.02, fixed="lo"))
-    assert float(g_hi) == pytest.approx(-0.75, abs=1e-4)
-    (g_lo,) = _wall_grads(_Walls(-0.2, 0.2, fixed="hi"))  # 0.4 thick: nothing to push
-    assert float(g_lo) == 0.0

@@ -10,14 +10,8 @@ from inside holds the segment from ``p`` to ``p - t n`` (``n`` the outward unit 
 solid is thinner than ``t`` that segment leaves it. So at each surface sample ``p`` (the points
 projected onto ``f = 0``, :meth:`ginn.constraints.Batch.surface`) the field is read at ``p - s n``
 for ``s = t/4, t/2, 3t/4, t`` and the loss is the mean of ``relu(f)`` there: where a neck, a plate
-or a tip is thinner than ``t`` the far side of it lies on the segment. The penalty lowers the field
-there, growing the solid on that side, and it moves ``p`` itself outward (``p`` enters as the
-surface point the parameters move, ``p - n (f(p) - sg f(p)) / |grad f|``, the same value with the
-gradient of one Newton step), growing the solid on the near side: both sides grow until the
-segment stays inside. The near side matters where the far side is held by another term: a ring
-around an interface hole, a lip along an interface wall, whose far side the interface and
-containment terms keep in place; with the far side alone such rings stayed 0.040 to 0.042 thick
-for a bound of 0.05 (pins-2d with ``benchmarks/suite.py --make``). It reads only the
+or a tip is thinner than ``t`` the far side of it lies on the segment, and the penalty lowers the
+field there, growing the solid on that side until the segment stays inside. It reads only the
 sign of ``f`` along the segment, so it holds for a field that is not a distance. For the gaps it
 is the same outward: ``relu(-f)`` at ``p + s n``, where the segment crosses another part of the
 solid. An exact penalty (power 1) in units of length, like the containment terms; the checks raise
@@ -127,12 +121,8 @@ class _Segments(Constraint):
             return None
         p = srf.x.reshape(-1, batch.d)[ok]  # (m, d)
         z = None if batch.Z is None else batch.latents_of(srf.x)[ok]
-        g = fields.evaluate(batch.model, p, z, grad=True, create_graph=False).grad
-        gn = g.norm(dim=-1, keepdim=True).clamp_min(1e-12)  # (m, 1)
-        n = g / gn
-        # the near side: p as the parameters move it (one Newton step along n, whose value is 0)
-        fp = batch.model(p, z)[:, None]  # (m, 1)
-        p = p - n * (fp - fp.detach()) / gn
+        n = fields.evaluate(batch.model, p, z, grad=True, create_graph=False).grad
+        n = n / n.norm(dim=-1, keepdim=True).clamp_min(1e-12)
         s = torch.tensor(SEGMENT_FRACTIONS, device=p.device, dtype=p.dtype) * self.size  # (K,)
         q = (p[:, None, :] + self.sign * s[None, :, None] * n[:, None, :]).reshape(-1, batch.d)  # (m K, d)
         zq = None if z is None else z.repeat_interleave(len(s), dim=0)
