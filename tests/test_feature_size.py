@@ -7,8 +7,10 @@ import numpy as np
 import pytest
 import torch
 
+from ginn.config import CELLS_PER_LENGTH, RESOLUTION
 from ginn.constraints import MinGap, MinGapVerdict, MinThickness, MinThicknessVerdict
 from ginn.errors import SpecError
+from ginn.eval.feasibility import check_resolution
 from ginn.extract.grid import Grid
 from ginn.extract.morphology import closing_added, opening, opening_removed
 from ginn.problems import FeatureSize, validate_spec
@@ -64,6 +66,18 @@ def test_the_opening_is_the_same_with_unequal_spacing():
     v = [opening_removed((np.abs(x[..., 0]) <= 1.0) & (np.abs(x[..., 1]) <= 0.2), g.spacing, 0.3, w)
          for g, x, w in ((g1, x1, w1), (g2, x2, w2))]
     assert v[0] == pytest.approx(v[1], rel=0.15)
+
+
+def test_a_ball_under_two_cells_opens_nothing_and_one_over_the_checks_cells_removes_a_thin_bar():
+    """Every node inside lies at least a cell from a node outside, so a ball of radius under a
+    cell erodes nothing: the opening cannot see a bar thinner than the ball. With the ball
+    ``CELLS_PER_LENGTH`` cells wide it removes the bar whole."""
+    ball = 0.09
+    for cells, removed in ((round(2.4 / (ball / 1.8)), 0.0), (round(2.4 / (ball / CELLS_PER_LENGTH)), 1.0)):
+        g, x, w = _grid(cells=(cells, round(cells / 2.4)))
+        bar = (np.abs(x[..., 0]) <= 1.0) & (np.abs(x[..., 1]) <= 0.0225)  # half the ball thick
+        assert bar.any()
+        assert opening_removed(bar, g.spacing, ball, w) == removed
 
 
 # --- spec ----------------------------------------------------------------------------------------
@@ -129,3 +143,18 @@ def test_segments_leave_a_thinner_solid_by_known_depths(w, expected):
     assert [c for c in task.constraints if isinstance(c, MinGap)]
     assert _loss(task, _Slab(w, -1.0), "gap") == pytest.approx(expected, abs=1e-5)
     assert _loss(task, _Slab(w, -1.0), "thickness") == pytest.approx(0.0, abs=1e-7)  # the solid is wide
+
+
+def test_the_checks_grid_spans_the_ball_with_enough_cells_up_to_the_evaluation_grid():
+    """``ceil(CELLS_PER_LENGTH * 2 / t)`` cells along the domain's side of 2, a multiple of 8,
+    between the checks' default and ``ginn eval``'s grid."""
+    assert check_resolution(_spec().build()) == RESOLUTION["check"][2]
+    assert check_resolution(_spec(min_thickness=0.1).build()) == RESOLUTION["check"][2]  # 60 cells would do
+    assert check_resolution(_spec(min_gap=0.02).build()) == 8 * math.ceil(CELLS_PER_LENGTH * 2 / 0.02 / 8) == 304
+    assert check_resolution(_spec(min_thickness=0.1, min_gap=0.001).build()) == RESOLUTION["eval"][2]
+    solid = {**SPEC, "geometry": {"dim": 3, "domain": {"lo": [-1, -1, -0.5], "hi": [1, 1, 0.5]}, "interfaces": [
+        {"type": "annulus", "center": [-0.9, 0, 0], "normal": [-1, 0, 0], "r_inner": 0.02, "r_outer": 0.05}]}}
+    p = validate_spec({**solid, "tolerances": {"min_thickness": 0.05}}).build()
+    assert check_resolution(p) == 120 > RESOLUTION["check"][3]
+    task = make_task(_spec(min_gap=0.02), _spec(min_gap=0.02).config(None, {}))
+    assert task.checker().resolution == 304

@@ -18,7 +18,18 @@ This package imports only :mod:`ginn.errors`; ``docs/config.md`` is generated fr
 descriptions here (``python scripts/config_reference.py``) and a test keeps it in step.
 """
 
-from .base import DTYPES, HELDOUT_LATENTS, HELDOUT_PER_SHAPE, MIN_STEP_CODES, RESOLUTION, STRAIN_CLIP, LossTerm, Strict, default_resolution
+from .base import (
+    CELLS_PER_LENGTH,
+    DTYPES,
+    HELDOUT_LATENTS,
+    HELDOUT_PER_SHAPE,
+    MIN_STEP_CODES,
+    RESOLUTION,
+    STRAIN_CLIP,
+    LossTerm,
+    Strict,
+    default_resolution,
+)
 from .engine import BalancingConfig, LatentConfig, ModelConfig, OutputConfig, TrainingConfig
 from .gray_scott import GrayScottLosses, GrayScottParams, GSParams
 from .mirror import MirrorParams
@@ -42,8 +53,8 @@ from .run import (
 from .shape import ConnectednessConfig, DiversityConfig, LossesConfig, SamplingConfig, ShapeParams, StructuralConfig, TopologyConfig
 
 __all__ = [
-    "DTYPES", "HELDOUT_LATENTS", "HELDOUT_PER_SHAPE", "MIN_STEP_CODES", "RESOLUTION", "STRAIN_CLIP", "LossTerm", "Strict",
-    "default_resolution",
+    "CELLS_PER_LENGTH", "DTYPES", "HELDOUT_LATENTS", "HELDOUT_PER_SHAPE", "MIN_STEP_CODES", "RESOLUTION", "STRAIN_CLIP", "LossTerm",
+    "Strict", "default_resolution",
     "ModelConfig", "LatentConfig", "BalancingConfig", "TrainingConfig", "OutputConfig",
     "LossesConfig", "SamplingConfig", "DiversityConfig", "ConnectednessConfig", "TopologyConfig", "StructuralConfig", "ShapeParams",
     "MirrorParams", "GSParams", "GrayScottLosses", "GrayScottParams",

@@ -9,7 +9,7 @@ from typing import Literal
 import torch
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
-__all__ = ["Strict", "LossTerm", "DTYPES", "STRAIN_CLIP", "RESOLUTION", "HELDOUT_LATENTS", "HELDOUT_PER_SHAPE",
+__all__ = ["Strict", "LossTerm", "DTYPES", "STRAIN_CLIP", "RESOLUTION", "CELLS_PER_LENGTH", "HELDOUT_LATENTS", "HELDOUT_PER_SHAPE",
            "MIN_STEP_CODES", "default_resolution"]
 
 #: Names of the floating-point types a run may train in (``training.dtype``).
@@ -23,6 +23,12 @@ STRAIN_CLIP = 1000.0
 #: for a figure drawn on its own (3D renders cost time per triangle), ``check`` for the feasibility
 #: checks during training.
 RESOLUTION = {"eval": {2: 512, 3: 128}, "output": {2: 256, 3: 128}, "figure": {2: 256, 3: 64}, "check": {2: 128, 3: 64}}
+
+#: A length a verdict measures on the grid (the diameter of a least feature size's ball) spans at
+#: least this many cells of the checks' grid, which is made finer up to the ``eval`` resolution
+#: (:func:`ginn.eval.feasibility.check_resolution`). Below two cells the opening by the ball
+#: removes nothing whatever the shape: every node inside is at least a cell from one outside.
+CELLS_PER_LENGTH = 3
 
 
 #: Held-out latent codes a generative model is judged at beside its reported ones, by purpose and

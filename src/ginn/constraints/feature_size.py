@@ -52,6 +52,7 @@ class _FeatureVerdict(Verdict):
         super().__init__(problem)
         self.metrics = (self.metric,)
         self.bound: FeatureSize = getattr(problem.tolerances, self.name)
+        self.resolves = self.bound.size  # the ball's diameter
 
     def _value(self, inside, spacing, weights) -> float | None:
         raise NotImplementedError

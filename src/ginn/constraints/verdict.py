@@ -67,7 +67,9 @@ class Verdict(abc.ABC):
     1 says nothing of how far off a shape is; the check-driven multipliers raise such a bound's
     terms by their full factor, :mod:`ginn.train.balancing`), ``enforced_by`` (for a verdict that
     is no constraint's own: the loss terms whose multipliers its violation raises, as a
-    constraint's does its terms'). Instances: ``metrics``, the metric names it reads.
+    constraint's does its terms'). Instances: ``metrics``, the metric names it reads, and
+    ``resolves``, the least length its measure on a grid must resolve (None: none; the checks
+    during training choose their grid by it, :func:`ginn.eval.feasibility.check_resolution`).
     """
 
     name: ClassVar[str]
@@ -79,6 +81,7 @@ class Verdict(abc.ABC):
     def __init__(self, problem: Problem):
         self.problem = problem
         self.metrics: tuple[str, ...] = ()
+        self.resolves: float | None = None
 
     def measure(self, shape, context, field, z) -> dict[str, Any]:
         """Metrics this verdict reads that ``ginn eval`` does not measure (none by default):

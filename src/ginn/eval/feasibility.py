@@ -35,6 +35,7 @@ from dataclasses import replace
 import torch
 from torch import Tensor
 
+from ..config import CELLS_PER_LENGTH, default_resolution
 from ..constraints.catalog import problem_verdicts, verdict_text
 from ..constraints.containment import judged_volume_outside
 from ..constraints.holes import BETTI_METRICS
@@ -48,7 +49,7 @@ from .results import FeasibilitySummary, ShapeMetrics
 __all__ = ["FEASIBILITY_METRICS", "BETTI_METRICS", "feasibility_metrics", "judged_volume_outside", "shape_violations",
            "violations", "ratios",
            "summarize", "verdict_text", "format_feasibility", "short_summary", "check_feasibility", "FeasibilityCheck", "evaluating",
-           "measured"]
+           "measured", "check_resolution"]
 
 #: The metrics every check measures (the worst values of a summary read them).
 FEASIBILITY_METRICS = ("b0_in_design_region", "connected_interfaces_share", "interface_cd1", "volume_outside",
@@ -151,6 +152,22 @@ def format_feasibility(summary: FeasibilitySummary, verdicts: Sequence[Verdict] 
 def short_summary(summary: FeasibilitySummary) -> str:
     """A few words for a progress bar: ``12/16, worst interface 8.1e-03``."""
     return summary.short()
+
+
+def check_resolution(problem: Problem, verdicts: Sequence[Verdict] | None = None) -> int:
+    """The cells along the domain's longest side of the checks' grid: ``RESOLUTION['check']``, or
+    finer where a judging verdict's ``resolves`` length would span fewer than
+    :data:`~ginn.config.CELLS_PER_LENGTH` cells of it (a least thickness of 0.05 in a domain 2
+    long: 120 cells), rounded up to a multiple of 8 and at most the ``eval`` resolution, so that a
+    check never misses what ``ginn eval`` measures for want of cells."""
+    d = problem.dim
+    base, cap = default_resolution("check", d), default_resolution("eval", d)
+    longest = max(h - lo for lo, h in zip(problem.domain.lo, problem.domain.hi))
+    lengths = [v.resolves for v in _verdicts(problem, verdicts) if v.judges and v.resolves]
+    if not lengths:
+        return base
+    need = math.ceil(CELLS_PER_LENGTH * longest / min(lengths) - 1e-9)
+    return int(min(cap, max(base, 8 * math.ceil(need / 8))))
 
 
 class FeasibilityCheck:

@@ -17,10 +17,10 @@ from collections.abc import Callable, Sequence
 import torch
 from torch import Tensor, nn
 
-from ...config import HELDOUT_LATENTS, HELDOUT_PER_SHAPE, MIN_STEP_CODES, LossTerm, RunConfig, default_resolution
+from ...config import HELDOUT_LATENTS, HELDOUT_PER_SHAPE, MIN_STEP_CODES, LossTerm, RunConfig
 from ...constraints import BUILTIN_SETS, Batch, Constraint, SampleSet, Setting, Verdict, shape_constraints, verdicts_of
 from ...errors import ConfigError, SpecError
-from ...eval.feasibility import FeasibilityCheck
+from ...eval.feasibility import FeasibilityCheck, check_resolution
 from ...eval.plateau import ReferenceVerdict
 from ...geometry.base import Region
 from ...models.factory import build_model
@@ -216,12 +216,14 @@ class ShapeTask(Task):
                        gated=tuple(c.name for c in self.constraints if c.gated))
 
     def checker(self) -> FeasibilityCheck:
-        """The coarse-grid check of the problem's tolerances (``RESOLUTION['check']``), with the
+        """The coarse-grid check of the problem's tolerances (``RESOLUTION['check']``, finer where
+        a least feature size needs it: :func:`~ginn.eval.feasibility.check_resolution`), with the
         definitions of ``ginn eval``, built once per task."""
         if self._check is None:
             n = None if self.Z is None else max(HELDOUT_LATENTS["check"][self.d], HELDOUT_PER_SHAPE * self.Z.shape[0])
-            self._check = FeasibilityCheck(self.problem, default_resolution("check", self.d), seed=self.cfg.seed,
-                                           verdicts=self.verdicts(), heldout=self.heldout("check", n))
+            verdicts = self.verdicts()
+            self._check = FeasibilityCheck(self.problem, check_resolution(self.problem, verdicts), seed=self.cfg.seed,
+                                           verdicts=verdicts, heldout=self.heldout("check", n))
         return self._check
 
     def heldout(self, purpose: str = "eval", n: int | None = None) -> Tensor | None:
