@@ -158,3 +158,25 @@ def test_the_checks_grid_spans_the_ball_with_enough_cells_up_to_the_evaluation_g
     assert check_resolution(p) == 120 > RESOLUTION["check"][3]
     task = make_task(_spec(min_gap=0.02), _spec(min_gap=0.02).config(None, {}))
     assert task.checker().resolution == 304
+
+
+def test_eval_says_when_its_grid_cannot_see_the_ball():
+    """On 64 cells of a domain 2 long (0.03125 a cell) a ball of 0.05 spans 1.6 cells and removes
+    nothing from a bar 0.02 thick: the evaluation names it with the grid that resolves it; the
+    gap of 0.1 (3.2 cells) it measures. The note survives metrics.json."""
+    from ginn.eval.results import ShapeEvaluation
+    from ginn.eval.shapes import evaluate_shapes
+    from ginn.fields import as_field
+
+    p = _spec(min_thickness=0.05, min_gap=0.1).build()
+    verdicts = [MinThicknessVerdict(p), MinGapVerdict(p)]
+    bar = as_field(lambda x: torch.maximum(x[:, 0].abs() - 0.95, x[:, 1].abs() - 0.01))
+    ev = evaluate_shapes(bar, None, p, resolution=64, verdicts=verdicts)
+    assert ev.shapes[0].get("thickness_removed") == 0.0
+    assert list(ev.unresolved) == ["min_thickness"]
+    u = ev.unresolved["min_thickness"]
+    assert u["cells"] == pytest.approx(1.6) and u["resolution"] == 120
+    assert "min_thickness: the ball of diameter 0.05 spans 1.6 cells" in ev.text() and "--resolution 120" in ev.text()
+    assert ShapeEvaluation.from_json(ev.to_json()).unresolved == ev.unresolved
+    fine = evaluate_shapes(bar, None, p, resolution=120, verdicts=verdicts)
+    assert fine.unresolved == {} and fine.shapes[0].get("thickness_removed") == 1.0

@@ -49,7 +49,7 @@ from .results import FeasibilitySummary, ShapeMetrics
 __all__ = ["FEASIBILITY_METRICS", "BETTI_METRICS", "feasibility_metrics", "judged_volume_outside", "shape_violations",
            "violations", "ratios",
            "summarize", "verdict_text", "format_feasibility", "short_summary", "check_feasibility", "FeasibilityCheck", "evaluating",
-           "measured", "check_resolution"]
+           "measured", "check_resolution", "unresolved"]
 
 #: The metrics every check measures (the worst values of a summary read them).
 FEASIBILITY_METRICS = ("b0_in_design_region", "connected_interfaces_share", "interface_cd1", "volume_outside",
@@ -166,8 +166,25 @@ def check_resolution(problem: Problem, verdicts: Sequence[Verdict] | None = None
     lengths = [v.resolves for v in _verdicts(problem, verdicts) if v.judges and v.resolves]
     if not lengths:
         return base
-    need = math.ceil(CELLS_PER_LENGTH * longest / min(lengths) - 1e-9)
-    return int(min(cap, max(base, 8 * math.ceil(need / 8))))
+    return int(min(cap, max(base, _cells_for(min(lengths), longest))))
+
+
+def _cells_for(length: float, longest: float) -> int:
+    """The cells along the longest side, a multiple of 8, at which ``length`` spans
+    :data:`~ginn.config.CELLS_PER_LENGTH` cells."""
+    return 8 * math.ceil(math.ceil(CELLS_PER_LENGTH * longest / length - 1e-9) / 8)
+
+
+def unresolved(verdicts: Sequence[Verdict], spacing, longest: float) -> dict[str, dict]:
+    """The judging verdicts whose ``resolves`` length spans fewer than two cells of a grid with
+    node ``spacing (d,)``: there a ball of that diameter lies within a cell of every node, the
+    opening removes nothing and the closing adds nothing whatever the shape. ``{name: {"length",
+    "cells" (what it spans), "resolution" (the cells along the domain's ``longest`` side at which
+    it spans CELLS_PER_LENGTH)}}``."""
+    h = float(min(spacing))
+    return {v.name: {"length": float(v.resolves), "cells": float(v.resolves) / h,
+                     "resolution": _cells_for(float(v.resolves), longest)}
+            for v in verdicts if v.judges and v.resolves and v.resolves < 2.0 * h}
 
 
 class FeasibilityCheck:

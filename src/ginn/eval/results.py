@@ -225,6 +225,8 @@ class ShapeEvaluation:
     #: a generative model's latent set: the resolution of the held-out verdicts and the smoothness
     #: of z -> shape (:mod:`ginn.eval.latent_space`); empty for a single shape
     latent_space: dict = field(default_factory=dict)
+    #: the verdicts whose length the grid cannot resolve (:func:`ginn.eval.feasibility.unresolved`)
+    unresolved: dict = field(default_factory=dict)
 
     @property
     def n_shapes(self) -> int:
@@ -234,7 +236,8 @@ class ShapeEvaluation:
         return {"problem": self.problem, "n_shapes": self.n_shapes, "shapes": [s.to_json() for s in self.shapes],
                 "mean": dict(self.mean), "diversity_mean": self.diversity_mean,
                 "feasibility": self.feasibility.to_json(),
-                **({"latent_space": dict(self.latent_space)} if self.latent_space else {}), **self.reference}
+                **({"latent_space": dict(self.latent_space)} if self.latent_space else {}),
+                **({"unresolved": dict(self.unresolved)} if self.unresolved else {}), **self.reference}
 
     def text(self) -> str:
         text = format_table(self.to_json(), self.feasibility.text(self.verdicts))
@@ -248,14 +251,18 @@ class ShapeEvaluation:
                      f"{ls['topology_changes']} change(s) of topology")
         if ls.get("resolution"):
             text += f"\n(held-out latents judged on the evaluation grid, {ls['resolution']} cells along the longest side)"
+        for name, u in self.unresolved.items():
+            text += (f"\n{name}: the ball of diameter {u['length']:.3g} spans {u['cells']:.2g} cells of this grid, "
+                     f"under the 2 that its opening needs to change anything, so this grid cannot find a shape "
+                     f"violating it: judge with --resolution {u['resolution']}")
         if self.reference:
             text += "\n" + "\n".join(f"{k}: {v}" for k, v in self.reference.items())
         return text
 
     @classmethod
     def from_json(cls, data: Mapping) -> ShapeEvaluation:
-        known = ("problem", "n_shapes", "shapes", "mean", "diversity_mean", "feasibility", "latent_space")
+        known = ("problem", "n_shapes", "shapes", "mean", "diversity_mean", "feasibility", "latent_space", "unresolved")
         return cls(data.get("problem", ""), [ShapeMetrics.from_json(s) for s in data.get("shapes", [])],
                    dict(data.get("mean") or {}), data.get("diversity_mean"),
                    FeasibilitySummary.from_json(data["feasibility"]), {k: v for k, v in data.items() if k not in known},
-                   latent_space=dict(data.get("latent_space") or {}))
+                   latent_space=dict(data.get("latent_space") or {}), unresolved=dict(data.get("unresolved") or {}))

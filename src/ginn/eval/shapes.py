@@ -24,7 +24,7 @@ from ..constraints.verdict import Verdict
 from ..extract.boundary import Boundary
 from ..fields import Field
 from ..problems.problem import Problem
-from .feasibility import measured, summarize
+from .feasibility import measured, summarize, unresolved
 from .metrics import chamfer_matrix, diversity_from_matrix, extract_shape, prepare_context, shape_metrics
 from .report import METRIC_LABELS, format_comparison_table, format_table
 from .results import METRIC_NAMES, ShapeEvaluation
@@ -108,6 +108,8 @@ def evaluate_shapes(
                                    if isinstance(v, (int, float)) and not isinstance(v, bool)})
     mean = {k: _mean([s.get(k) for s in shapes]) for k in (*METRIC_NAMES, *measured_by_verdicts)}
     summary = summarize(shapes, problem, div, judges)
-    return ShapeEvaluation(problem.name, shapes, mean, div, summary, verdicts=judges)
+    longest = max(h - lo for lo, h in zip(problem.domain.lo, problem.domain.hi))
+    return ShapeEvaluation(problem.name, shapes, mean, div, summary, verdicts=judges,
+                           unresolved=unresolved(judges, ctx.grid.spacing, longest))
 
 
