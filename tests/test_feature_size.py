@@ -180,3 +180,40 @@ def test_eval_says_when_its_grid_cannot_see_the_ball():
     assert ShapeEvaluation.from_json(ev.to_json()).unresolved == ev.unresolved
     fine = evaluate_shapes(bar, None, p, resolution=120, verdicts=verdicts)
     assert fine.unresolved == {} and fine.shapes[0].get("thickness_removed") == 1.0
+
+
+class _Disk(torch.nn.Module):
+    """The signed distance of the disk (sphere) of radius R at the origin (``sign`` -1: of its
+    complement, a round hole)."""
+
+    def __init__(self, R, sign=1.0):
+        super().__init__()
+        self.R, self.sign = R, sign
+        self.p = torch.nn.Parameter(torch.zeros(()))
+
+    def forward(self, x, z=None):
+        return self.sign * (x.norm(dim=-1) - self.R) + 0 * self.p
+
+
+def test_signed_curvature_is_one_over_the_radius_on_the_convex_side_only():
+    from ginn.constraints.feature_size import signed_curvature
+    from ginn.fields import evaluate
+
+    for d in (2, 3):
+        x = torch.nn.functional.normalize(torch.randn(64, d, dtype=torch.float64), dim=-1) * 0.4
+        for sign in (1.0, -1.0):
+            v = evaluate(_Disk(0.4, sign).double(), x, None, grad=False, hessian_at=torch.ones(64, dtype=torch.bool))
+            convex, concave = (signed_curvature(v.hessian_grad, v.hessian, c) for c in (True, False))
+            assert torch.allclose(convex, torch.full_like(convex, sign / 0.4), atol=1e-6)
+            assert torch.allclose(concave, torch.full_like(concave, -sign / 0.4), atol=1e-6)
+
+
+@pytest.mark.parametrize("R, expected", [(0.025, 1.0), (0.3, 0.0)])
+def test_edges_terms_hold_the_curvature_under_two_over_the_size(R, expected):
+    """Ball of diameter 0.1 (r = 0.05): a disk of radius R has the term relu(r / R - 1) on its
+    edge, its complement (a hole of radius R) the same on the gap's."""
+    spec = _spec(min_thickness=0.1, min_gap=0.1)
+    task = make_task(spec, spec.config(None, {"sampling": {"n_domain": 4096, "n_boundary": 64}}))
+    assert _loss(task, _Disk(R), "thickness_edges") == pytest.approx(expected, rel=1e-4, abs=1e-6)
+    assert _loss(task, _Disk(R, -1.0), "gap_edges") == pytest.approx(expected, rel=1e-4, abs=1e-6)
+    assert _loss(task, _Disk(R, -1.0), "thickness_edges") == 0.0  # a round hole has no convex edge

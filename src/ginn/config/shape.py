@@ -33,6 +33,8 @@ class LossesConfig(Strict):
     area: LossTerm = LossTerm()
     thickness: LossTerm = LossTerm()
     gap: LossTerm = LossTerm()
+    thickness_edges: LossTerm = LossTerm()
+    gap_edges: LossTerm = LossTerm()
     overhang: LossTerm = LossTerm()
     fillet: LossTerm = LossTerm()
     faces: LossTerm = LossTerm()

@@ -19,7 +19,7 @@ from .curvature import MeanCurvature, Strain
 from .diversity import Diversity, LeastDiversity
 from .eikonal import Eikonal
 from .faces import Faces, FacesVerdict
-from .feature_size import MinGap, MinGapVerdict, MinThickness, MinThicknessVerdict
+from .feature_size import GapEdges, MinGap, MinGapVerdict, MinThickness, MinThicknessVerdict, ThicknessEdges
 from .fillet import MinRadius, MinRadiusVerdict
 from .holes import BETTI_METRICS, HoleTargets, TopologyTargets
 from .interface import Interface, InterfaceVerdict
@@ -34,8 +34,8 @@ __all__ = [
     "Constraint", "Setting", "Stage", "Batch", "Surface", "SampleSet", "Verdict", "Violation",
     "DOMAIN", "OUTSIDE", "OBSTACLE", "INTERFACE", "BAND", "BUILTIN_SETS",
     "Eikonal", "DesignRegion", "Obstacle", "Interface", "Normal", "MeanCurvature", "Strain", "Diversity",
-    "Connectedness", "HoleTargets", "VolumeFraction", "MinThickness", "MinGap", "Overhang", "MinRadius", "Area",
-    "Faces", "Attachment",
+    "Connectedness", "HoleTargets", "VolumeFraction", "MinThickness", "MinGap", "ThicknessEdges", "GapEdges", "Overhang",
+    "MinRadius", "Area", "Faces", "Attachment",
     "InterfaceVerdict", "VolumeOutside", "Connected", "TopologyTargets", "SymmetryVerdict", "LeastDiversity",
     "VolumeFractionVerdict", "MinThicknessVerdict", "MinGapVerdict", "OverhangVerdict", "MinRadiusVerdict", "AreaVerdict",
     "FacesVerdict", "AttachmentVerdict",

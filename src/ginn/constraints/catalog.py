@@ -13,7 +13,7 @@ from .curvature import MeanCurvature, Strain
 from .diversity import Diversity, LeastDiversity
 from .eikonal import Eikonal
 from .faces import Faces, FacesVerdict
-from .feature_size import MinGap, MinGapVerdict, MinThickness, MinThicknessVerdict
+from .feature_size import GapEdges, MinGap, MinGapVerdict, MinThickness, MinThicknessVerdict, ThicknessEdges
 from .fillet import MinRadius, MinRadiusVerdict
 from .holes import HoleTargets, TopologyTargets
 from .interface import Interface, InterfaceVerdict
@@ -27,12 +27,13 @@ __all__ = ["shape_constraints", "problem_verdicts", "verdicts_of", "describe", "
 
 #: the built-in verdicts by name (their texts)
 #: the terms a tolerance adds, each with its verdict, in the order of the loss terms and of the
-#: verdicts: ``(tolerances field, constraint, verdict)``, present where the field is stated
-TOLERANCE_TERMS: tuple[tuple[str, type[Constraint], type[Verdict]], ...] = (
+#: verdicts: ``(tolerances field, constraint or constraints, verdict)``, present where the field is
+#: stated
+TOLERANCE_TERMS: tuple[tuple[str, type[Constraint] | tuple[type[Constraint], ...], type[Verdict]], ...] = (
     ("volume_fraction", VolumeFraction, VolumeFractionVerdict),
     ("area", Area, AreaVerdict),
-    ("min_thickness", MinThickness, MinThicknessVerdict),
-    ("min_gap", MinGap, MinGapVerdict),
+    ("min_thickness", (MinThickness, ThicknessEdges), MinThicknessVerdict),
+    ("min_gap", (MinGap, GapEdges), MinGapVerdict),
     ("overhang", Overhang, OverhangVerdict),
     ("min_radius", MinRadius, MinRadiusVerdict),
     ("faces", Faces, FacesVerdict),
@@ -72,7 +73,8 @@ def shape_constraints(setting: Setting) -> list[Constraint]:
     out.append(Connectedness(setting))
     if p.topology.targets:
         out.append(HoleTargets(setting))
-    out += [term(setting) for field, term, _ in TOLERANCE_TERMS if _stated(p, field)]
+    out += [term(setting) for field, terms, _ in TOLERANCE_TERMS if _stated(p, field)
+            for term in (terms if isinstance(terms, tuple) else (terms,))]
     if p.physics is not None:
         out += [Attachment(setting), Compliance(setting)]
     return out

@@ -17,8 +17,17 @@ is the same outward: ``relu(-f)`` at ``p + s n``, where the segment crosses anot
 solid. An exact penalty (power 1) in units of length, like the containment terms; the checks raise
 its multiplier while the verdict is violated.
 
-The opening also rounds every convex corner (a right angle loses ``(1 - pi / 4) (t / 2)^2`` of
-area), which the segment test does not see: that share is what ``removed`` allows.
+The opening also rounds every convex edge (a right angle loses ``(1 - pi / 4) (t / 2)^2`` of
+area), which the segment test does not see: its segment stays inside at a convex edge. A ball of
+radius ``r = t / 2`` rolls inside a smooth solid along its whole boundary exactly when the solid is
+at least ``t`` thick (the segments) and no principal curvature of its boundary is above ``1 / r``
+(convex). So each bound has a second term on the edges (``thickness_edges``, ``gap_edges``): at
+the surface samples with Hessians (:meth:`ginn.constraints.Batch.surface_hessians`) away from the
+interfaces, the mean of ``min(relu(kappa r - 1), CLIP)``, ``kappa`` the largest convex principal
+curvature (for the gaps: the largest concave one, where the closing fills an inner corner),
+dimensionless like the fillet radius's term (:mod:`ginn.constraints.fillet`). Without it a part
+that fills a sharp edge of its design region keeps that edge: on the bracket's shapes the opening
+by a ball of 0.05 removed 1.1 % of the volume within 0.025 of E's boundary and 0.15 % elsewhere.
 """
 
 from __future__ import annotations
@@ -34,10 +43,12 @@ from ..extract.morphology import closing_added, opening_removed
 from ..problems.problem import FeatureSize, Problem
 from .base import Constraint, Setting, Stage
 from .batch import Batch
+from .fillet import CLIP, near_an_interface
 from .samples import DOMAIN
 from .verdict import Verdict, Violation, number_text
 
-__all__ = ["MinThicknessVerdict", "MinGapVerdict", "MinThickness", "MinGap", "SEGMENT_FRACTIONS"]
+__all__ = ["MinThicknessVerdict", "MinGapVerdict", "MinThickness", "MinGap", "ThicknessEdges", "GapEdges",
+           "SEGMENT_FRACTIONS", "signed_curvature"]
 
 #: where along the normal segment of length ``t`` the field is read, as fractions of ``t``
 SEGMENT_FRACTIONS = (0.25, 0.5, 0.75, 1.0)
@@ -148,4 +159,65 @@ class MinGap(_Segments):
 
     name = "gap"
     sign = 1.0
+    verdict_type = MinGapVerdict
+
+
+def signed_curvature(grad: Tensor, hess: Tensor, convex: bool) -> Tensor:
+    """The largest convex principal curvature of the level set (``convex``), or the largest
+    concave one as a positive number, at each point, ``(m,)``; negative where there is none:
+    ``1 / r`` on the outside of a circle or a sphere of radius ``r`` (``f = |x| - r``)."""
+    if grad.shape[-1] == 2:
+        k = fields.mean_curvature(grad, hess)
+        return k if convex else -k
+    k = fields.principal_curvatures(grad, hess)  # (m, 2), ascending
+    return k[:, 1] if convex else -k[:, 0]
+
+
+class _Edges(Constraint):
+    """No principal curvature above ``2 / size`` on the solid's side (``convex``) or the void's
+    (module docstring)."""
+
+    stage = Stage.SURFACE
+    convex = True
+    verdict_type: type[_FeatureVerdict] = MinThicknessVerdict
+
+    def __init__(self, setting: Setting):
+        super().__init__(setting)
+        self._verdict = self.verdict_type(setting.problem)
+        self.radius = 0.5 * self._verdict.bound.size
+
+    @property
+    def verdict(self) -> _FeatureVerdict:
+        return self._verdict
+
+    def loss(self, batch: Batch) -> Tensor | None:
+        v, X = batch.surface_hessians()
+        if v.hessian.shape[0] == 0:
+            return None
+        with torch.no_grad():
+            keep = ~near_an_interface(self.setting.problem, X[v.hessian_index])
+        if not bool(keep.any()):
+            return None
+        k = signed_curvature(v.hessian_grad[keep], v.hessian[keep], self.convex)
+        k = torch.nan_to_num(k, nan=0.0, posinf=0.0, neginf=0.0)
+        return torch.clamp(torch.relu(k * self.radius - 1.0), max=CLIP).mean()
+
+    def target(self) -> float:
+        """0: no edge sharper than the ball."""
+        return 0.0
+
+
+class ThicknessEdges(_Edges):
+    """No convex edge sharper than the ``min_thickness`` ball (module docstring)."""
+
+    name = "thickness_edges"
+    convex = True
+    verdict_type = MinThicknessVerdict
+
+
+class GapEdges(_Edges):
+    """No concave edge sharper than the ``min_gap`` ball (module docstring)."""
+
+    name = "gap_edges"
+    convex = False
     verdict_type = MinGapVerdict

@@ -149,6 +149,11 @@ RULES: tuple[Rule, ...] = (
          "`tolerances.min_thickness`)", "s"),
     Rule("losses.gap.weight", "300 / s", lambda g: 300.0 / g.s,
          "as the thickness, outward (only with `tolerances.min_gap`)", "s"),
+    Rule("losses.thickness_edges.weight", "1", lambda g: 1.0,
+         "`relu(kappa r - 1)` on the convex edges, `r` half the least thickness: no scale, as the fillet radius "
+         "(only with `tolerances.min_thickness`)"),
+    Rule("losses.gap_edges.weight", "1", lambda g: 1.0,
+         "as the thickness's edges, concave (only with `tolerances.min_gap`)"),
     Rule("losses.overhang.weight", "10", lambda g: 10.0,
          "unit normals: no scale, as the prescribed normals (only with `tolerances.overhang`)"),
     Rule("losses.faces.weight", "10", lambda g: 10.0,
