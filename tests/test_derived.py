@@ -92,7 +92,7 @@ def test_builtin_specs_state_every_derived_setting():
         allowed |= {"losses.topology.weight", "topology.grid"}  # act only with topology targets; these state none
         # act only with a volume bound, a least feature size or a physics block; these state none
         allowed |= {"losses.compliance.weight", "losses.attachment.weight", "losses.volume.weight", "losses.area.weight", "losses.thickness.weight", "losses.gap.weight", "losses.overhang.weight",
-                    "losses.fillet.weight", "losses.faces.weight"}
+                    "losses.thickness_edges.weight", "losses.gap_edges.weight", "losses.fillet.weight", "losses.faces.weight"}
         if name == "plateau":
             allowed.add("latents.draw")  # acts only with latent codes; Plateau trains one shape
             # the multipliers and the learning-rate schedule are derived as for every problem
