@@ -145,19 +145,20 @@ def test_segments_leave_a_thinner_solid_by_known_depths(w, expected):
     assert _loss(task, _Slab(w, -1.0), "thickness") == pytest.approx(0.0, abs=1e-7)  # the solid is wide
 
 
-def test_the_checks_grid_spans_the_ball_with_enough_cells_up_to_the_evaluation_grid():
-    """``ceil(CELLS_PER_LENGTH * 2 / t)`` cells along the domain's side of 2, a multiple of 8,
-    between the checks' default and ``ginn eval``'s grid."""
+def test_the_checks_judge_a_ball_under_enough_of_their_cells_on_the_evaluation_grid():
+    """The checks' default grid where the ball spans ``CELLS_PER_LENGTH`` of its cells (a domain 2
+    long), ``ginn eval``'s grid where it does not."""
+    h = 2.0 / RESOLUTION["check"][2]
     assert check_resolution(_spec().build()) == RESOLUTION["check"][2]
-    assert check_resolution(_spec(min_thickness=0.1).build()) == RESOLUTION["check"][2]  # 60 cells would do
-    assert check_resolution(_spec(min_gap=0.02).build()) == 8 * math.ceil(CELLS_PER_LENGTH * 2 / 0.02 / 8) == 304
+    assert check_resolution(_spec(min_thickness=CELLS_PER_LENGTH * h).build()) == RESOLUTION["check"][2]
+    assert check_resolution(_spec(min_gap=0.99 * CELLS_PER_LENGTH * h).build()) == RESOLUTION["eval"][2]
     assert check_resolution(_spec(min_thickness=0.1, min_gap=0.001).build()) == RESOLUTION["eval"][2]
     solid = {**SPEC, "geometry": {"dim": 3, "domain": {"lo": [-1, -1, -0.5], "hi": [1, 1, 0.5]}, "interfaces": [
         {"type": "annulus", "center": [-0.9, 0, 0], "normal": [-1, 0, 0], "r_inner": 0.02, "r_outer": 0.05}]}}
     p = validate_spec({**solid, "tolerances": {"min_thickness": 0.05}}).build()
-    assert check_resolution(p) == 120 > RESOLUTION["check"][3]
+    assert check_resolution(p) == RESOLUTION["eval"][3]  # 1.6 cells of the checks' 64
     task = make_task(_spec(min_gap=0.02), _spec(min_gap=0.02).config(None, {}))
-    assert task.checker().resolution == 304
+    assert task.checker().resolution == RESOLUTION["eval"][2]
 
 
 def test_eval_says_when_its_grid_cannot_see_the_ball():

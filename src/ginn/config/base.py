@@ -25,8 +25,9 @@ STRAIN_CLIP = 1000.0
 RESOLUTION = {"eval": {2: 512, 3: 128}, "output": {2: 256, 3: 128}, "figure": {2: 256, 3: 64}, "check": {2: 128, 3: 64}}
 
 #: A length a verdict measures on the grid (the diameter of a least feature size's ball) spans at
-#: least this many cells of the checks' grid, which is made finer up to the ``eval`` resolution
-#: (:func:`ginn.eval.feasibility.check_resolution`). Below two cells the opening by the ball
+#: least this many cells of the checks' grid, or they judge on the ``eval`` grid
+#: (:func:`ginn.eval.feasibility.check_resolution`); ``ginn eval`` names the grid on which it
+#: does (:func:`ginn.eval.feasibility.unresolved`). Below two cells the opening by the ball
 #: removes nothing whatever the shape: every node inside is at least a cell from one outside.
 CELLS_PER_LENGTH = 3
 
