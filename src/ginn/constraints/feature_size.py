@@ -43,7 +43,7 @@ from ..extract.morphology import closing_added, opening_removed
 from ..problems.problem import FeatureSize, Problem
 from .base import Constraint, Setting, Stage
 from .batch import Batch
-from .fillet import CLIP, near_an_interface
+from .fillet import curvature_hinge
 from .samples import DOMAIN
 from .verdict import Verdict, Violation, number_text
 
@@ -191,16 +191,8 @@ class _Edges(Constraint):
         return self._verdict
 
     def loss(self, batch: Batch) -> Tensor | None:
-        v, X = batch.surface_hessians()
-        if v.hessian.shape[0] == 0:
-            return None
-        with torch.no_grad():
-            keep = ~near_an_interface(self.setting.problem, X[v.hessian_index])
-        if not bool(keep.any()):
-            return None
-        k = signed_curvature(v.hessian_grad[keep], v.hessian[keep], self.convex)
-        k = torch.nan_to_num(k, nan=0.0, posinf=0.0, neginf=0.0)
-        return torch.clamp(torch.relu(k * self.radius - 1.0), max=CLIP).mean()
+        return curvature_hinge(batch, self.setting.problem, self.radius,
+                               lambda grad, hess: signed_curvature(grad, hess, self.convex))
 
     def target(self) -> float:
         """0: no edge sharper than the ball."""

@@ -17,7 +17,7 @@ where a sample lands on a near-singular point of the field, as the strain is.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
@@ -31,7 +31,7 @@ from .base import Constraint, Setting, Stage
 from .batch import Batch
 from .verdict import Verdict, Violation, number_text
 
-__all__ = ["MinRadiusVerdict", "MinRadius", "CLIP", "near_an_interface"]
+__all__ = ["MinRadiusVerdict", "MinRadius", "CLIP", "near_an_interface", "curvature_hinge"]
 
 #: the largest per-point value of the loss (``kappa r - 1``)
 CLIP = 10.0
@@ -40,6 +40,22 @@ CLIP = 10.0
 def near_an_interface(problem: Problem, x: Tensor) -> Tensor:
     """``(n,)`` bool: the points of ``x (n, d)`` within the interface tolerance of an interface."""
     return near_any_interface(problem.interfaces, x, problem.interface_tolerance)
+
+
+def curvature_hinge(batch: Batch, problem: Problem, radius: float,
+                    curvature: Callable[[Tensor, Tensor], Tensor]) -> Tensor | None:
+    """The mean of ``min(relu(kappa radius - 1), CLIP)`` at the surface samples with Hessians away
+    from the interfaces, ``kappa = curvature(grad (q, d), hess (q, d, d)) -> (q,)``; None where no
+    sample is left."""
+    v, X = batch.surface_hessians()
+    if v.hessian.shape[0] == 0:
+        return None
+    with torch.no_grad():
+        keep = ~near_an_interface(problem, X[v.hessian_index])
+    if not bool(keep.any()):
+        return None
+    k = torch.nan_to_num(curvature(v.hessian_grad[keep], v.hessian[keep]), nan=0.0, posinf=0.0, neginf=0.0)
+    return torch.clamp(torch.relu(k * radius - 1.0), max=CLIP).mean()
 
 
 class MinRadiusVerdict(Verdict):
@@ -99,16 +115,7 @@ class MinRadius(Constraint):
         return self._verdict
 
     def loss(self, batch: Batch) -> Tensor | None:
-        v, X = batch.surface_hessians()
-        if v.hessian.shape[0] == 0:
-            return None
-        with torch.no_grad():
-            keep = ~near_an_interface(self.setting.problem, X[v.hessian_index])
-        if not bool(keep.any()):
-            return None
-        k = largest_curvature(v.hessian_grad[keep], v.hessian[keep])
-        k = torch.nan_to_num(k, nan=0.0, posinf=0.0)
-        return torch.clamp(torch.relu(k * self.radius - 1.0), max=CLIP).mean()
+        return curvature_hinge(batch, self.setting.problem, self.radius, largest_curvature)
 
     def target(self) -> float:
         """0: no surface sample sharper than the radius."""
