@@ -41,6 +41,7 @@ from ..constraints.containment import judged_volume_outside
 from ..constraints.holes import BETTI_METRICS
 from ..constraints.verdict import Verdict, Violation
 from ..fields import Field
+from ..problems.derived import length_scale
 from ..problems.problem import Problem
 from .context import ExtractedShape
 from .metrics import MetricContext, diversity_mean, extract_shape, prepare_context, shape_metrics
@@ -164,8 +165,7 @@ def check_resolution(problem: Problem, verdicts: Sequence[Verdict] | None = None
     1.0 % on 128."""
     d = problem.dim
     base = default_resolution("check", d)
-    longest = max(h - lo for lo, h in zip(problem.domain.lo, problem.domain.hi))
-    h = longest / base
+    h = 2.0 * length_scale(problem) / base
     if any(v.judges and v.resolves and v.resolves < CELLS_PER_LENGTH * h for v in _verdicts(problem, verdicts)):
         return max(base, default_resolution("eval", d))
     return base

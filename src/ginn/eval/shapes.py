@@ -23,6 +23,7 @@ from ..constraints.catalog import problem_verdicts
 from ..constraints.verdict import Verdict
 from ..extract.boundary import Boundary
 from ..fields import Field
+from ..problems.derived import length_scale
 from ..problems.problem import Problem
 from .feasibility import measured, summarize, unresolved
 from .metrics import chamfer_matrix, diversity_from_matrix, extract_shape, prepare_context, shape_metrics
@@ -108,8 +109,7 @@ def evaluate_shapes(
                                    if isinstance(v, (int, float)) and not isinstance(v, bool)})
     mean = {k: _mean([s.get(k) for s in shapes]) for k in (*METRIC_NAMES, *measured_by_verdicts)}
     summary = summarize(shapes, problem, div, judges)
-    longest = max(h - lo for lo, h in zip(problem.domain.lo, problem.domain.hi))
     return ShapeEvaluation(problem.name, shapes, mean, div, summary, verdicts=judges,
-                           unresolved=unresolved(judges, ctx.grid.spacing, longest))
+                           unresolved=unresolved(judges, ctx.grid.spacing, 2.0 * length_scale(problem)))
 
 
