@@ -25,6 +25,13 @@ def _depth_outside_obstacle_region(x):
     return torch.maximum(d_frame, 0.1 - x.norm(dim=-1))
 
 
+def _off_obstacle_interfaces(x, tol):
+    """``(n,)`` bool: the points of ``x (n, 2)`` farther than ``tol`` from the obstacle problem's
+    interfaces, the segments x = +-0.9, |y| <= 0.4."""
+    d = torch.sqrt((x[:, 0].abs() - 0.9) ** 2 + (x[:, 1].abs() - 0.4).clamp_min(0) ** 2)
+    return d > tol
+
+
 def test_every_shape_sees_every_interface():
     spec = load_spec("obstacle")
     cfg = spec.config("demo", {"sampling": {"n_interface": 64}, "latents": {"draw": "fixed"}})
@@ -84,7 +91,10 @@ def test_containment_slope_is_exact_for_sdfs_and_catches_flat_fields():
     pts = task.draw_batch(1, active, torch.Generator().manual_seed(5)).x
     xo = pts["outside"][0]
     d_out = _depth_outside_obstacle_region(xo)
-    expected = (2e-3 - d_out).clamp(max=0).pow(2).mean().item()
+    # the samples within the interface tolerance of an interface are left out (they count 0)
+    off = _off_obstacle_interfaces(xo, task.problem.interface_tolerance)
+    assert 0 < int((~off).sum()) < xo.shape[0]
+    expected = ((2e-3 - d_out).clamp(max=0).pow(2) * off).mean().item()
     assert expected > 1e-4 and out["design_region"].item() == pytest.approx(expected, rel=1e-5)
     d_obs = (0.1 - pts["obstacle"][0].norm(dim=-1)).clamp_min(0)  # depth into the disk
     assert out["obstacle"].item() == pytest.approx((2e-3 - d_obs).clamp(max=0).pow(2).mean().item(), rel=1e-5)
@@ -93,7 +103,8 @@ def test_containment_slope_is_exact_for_sdfs_and_catches_flat_fields():
 def test_surface_samples_outside_the_design_region_are_penalised_by_their_depth():
     """A disk of radius 0.3 centred at (0.8, 0) overhangs E = [-0.9, 0.9] x [-0.4, 0.4] by 0.2:
     besides the uniform samples of X \\ E, the design-region loss (power 1, slope 1) takes the
-    surface samples beyond x = 0.9, each at its depth x - 0.9 (f = 0 there)."""
+    surface samples beyond x = 0.9, each at its depth x - 0.9 (f = 0 there); samples within the
+    interface tolerance of the interface x = 0.9 count for nothing."""
     spec = load_spec("obstacle")
     cfg = spec.config("single", {"losses": {"containment_slope": 1.0, "containment_power": 1}})
     task = make_task(spec, cfg)
@@ -103,7 +114,8 @@ def test_surface_samples_outside_the_design_region_are_penalised_by_their_depth(
     out = task.loss_terms(disk, 0, {"design_region"}, gen)
     batch = task.draw_batch(1, {"design_region"}, torch.Generator().manual_seed(3))
     xo = batch.x["outside"][0]
-    fo = disk(xo) - _depth_outside_obstacle_region(xo)
+    tol = task.problem.interface_tolerance
+    fo = (disk(xo) - _depth_outside_obstacle_region(xo)) * _off_obstacle_interfaces(xo, tol)
     # the surface samples: recompute them as the task does
     batch.evaluate(disk)
     srf = batch.surface()
@@ -112,6 +124,9 @@ def test_surface_samples_outside_the_design_region_are_penalised_by_their_depth(
     assert beyond.shape[0] > 5 and ((beyond - c).norm(dim=-1) - 0.3).abs().max() < 1e-5
     depth = _depth_outside_obstacle_region(beyond)
     assert torch.allclose(depth, beyond[:, 0] - 0.9, atol=1e-6)
+    off = _off_obstacle_interfaces(beyond, tol)
+    assert 0 < int((~off).sum()) < beyond.shape[0]  # the disk crosses the interface x = 0.9
+    depth = depth[off]
     penalties = torch.cat([(-fo).clamp_min(0), depth])
     assert out["design_region"].item() == pytest.approx(penalties.mean().item(), rel=1e-4)
 

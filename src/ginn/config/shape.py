@@ -50,7 +50,8 @@ class LossesConfig(Strict):
         ge=0,
         description="penalise f below slope * (distance into X minus E, or into an obstacle) instead of below 0; "
         "0 is the paper's loss, 1 is exact for a signed distance field of any shape inside E; with a slope > 0 "
-        "the shapes' surface samples outside E enter the design-region term too, each at its depth",
+        "the shapes' surface samples outside E enter the design-region term too, each at its depth, and the samples "
+        "within the interface tolerance of an interface leave it (the volume the verdict leaves out)",
     )
 
 
