@@ -155,3 +155,26 @@ def test_without_a_floor_the_design_region_loss_is_the_papers():
     xo = task.draw_batch(1, {"design_region"}, torch.Generator().manual_seed(3)).x["outside"][0]
     expected = disk(xo).clamp(max=0).pow(2).mean().item()
     assert expected > 0 and out["design_region"].item() == pytest.approx(expected, rel=1e-6)
+
+
+def test_interface_distance_is_the_first_order_distance_to_the_zero_level():
+    """``losses.interface_distance``: on the obstacle (interfaces x = +-0.9, |y| <= 0.4) the field
+    ``f = k (x - 0.9 - c)`` has its zero level at x = 0.9 + c, so each sample of the interface x = 0.9
+    is ``c`` away and each of x = -0.9 is ``1.8 + c`` away: the term is the mean of those squared
+    distances whatever the slope ``k``, while the paper's is ``k^2`` times it."""
+    spec = load_spec("obstacle")
+    c, k = 0.01, 0.25
+    field = _FnField(lambda x: k * (x[:, 0] - 0.9 - c))
+    expected = 0.5 * (c * c + (1.8 + c) ** 2)
+    for distance, want in ((True, expected), (False, k * k * expected)):
+        task = make_task(spec, spec.config("single", {"losses": {"interface_distance": distance}}))
+        out = task.loss_terms(field, 0, {"interface"}, torch.Generator().manual_seed(2))
+        assert out["interface"].item() == pytest.approx(want, rel=1e-3)
+
+
+def test_level_distance_is_bounded_where_the_field_is_flat():
+    """``f / |grad f|`` for a slope, capped at ``reach`` in size where the gradient vanishes."""
+    from ginn.constraints.interface import level_distance
+    f = torch.tensor([0.02, -0.03, 0.5, -0.5])
+    g = torch.tensor([[0.5, 0.0], [0.0, 3.0], [0.0, 0.0], [1e-9, 0.0]])
+    assert level_distance(f, g, 2.0).tolist() == pytest.approx([0.04, -0.01, 2.0, -2.0])

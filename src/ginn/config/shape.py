@@ -40,6 +40,12 @@ class LossesConfig(Strict):
     faces: LossTerm = LossTerm()
     attachment: LossTerm = LossTerm()
     compliance: LossTerm = LossTerm()
+    interface_distance: bool = Field(
+        False,
+        description="the interface term as the mean of (f / |grad f|)^2, each interface sample's first-order distance "
+        "to f = 0 (what CD1 measures), instead of the paper's mean of f^2, which a field flatter than a distance "
+        "meets while its zero level stays short of the interface",
+    )
     containment_power: Literal[1, 2] = Field(
         2,
         description="exponent of the design-region and obstacle penalties: 2 is the paper's mean of "

@@ -4,6 +4,16 @@ Loss: ``mean over I of f^2`` (:class:`ginn.losses.InterfaceLoss`); with
 ``sampling.interface_corner_weight > 1`` the interfaces' corners (polyline vertices, end points
 included) join the samples with that weight. Verdict: ``interface_cd1 <= tolerances.interface *
 unit_scale`` (the one-sided Chamfer distance from I to the boundary, equation 4).
+
+With ``losses.interface_distance`` each sample enters as ``f / |grad f|``
+(:func:`level_distance`), its first-order distance to the zero level set, which is what the verdict
+measures, instead of the paper's ``f``. The paper's residual is a distance only where
+``|grad f| = 1``; the eikonal term holds that loosely, and a field that flattens near an interface
+meets the interface term while its zero level stays away from the interface. On the bracket's
+trained shapes ``|grad f|`` averaged 0.3 to 0.5 on the bolt seats, every sample's ``f`` was
+positive (+0.0013 to +0.0018 on average) and its distance 2 to 3 times that, and CD1 ended at 0.9
+to 1.4 times its bound on every run; in 2D the fields were steeper than a distance at their
+interfaces (``|grad f|`` 1 to 3), where the paper's residual overstates the distance instead.
 """
 
 from __future__ import annotations
@@ -17,13 +27,22 @@ from torch import Tensor
 from .. import fields
 from ..geometry import sampling
 from ..losses.constraints import InterfaceLoss
+from ..problems.derived import length_scale
 from ..problems.problem import Problem
 from .base import Constraint, Setting
 from .batch import Batch
 from .samples import INTERFACE
 from .verdict import Verdict, Violation
 
-__all__ = ["Interface", "InterfaceVerdict"]
+__all__ = ["Interface", "InterfaceVerdict", "level_distance"]
+
+
+def level_distance(f: Tensor, grad: Tensor, reach: float) -> Tensor:
+    """``f / |grad f|``, the first-order signed distance to ``f = 0``, ``(n,)`` from ``f (n,)`` and
+    ``grad (n, d)``; at most ``reach`` in size where the field is flat (the slope's floor
+    ``|f| / reach`` carries no gradient)."""
+    slope = torch.maximum(grad.norm(dim=-1), f.detach().abs() / reach)
+    return f / slope.clamp_min(torch.finfo(f.dtype).tiny)
 
 
 class InterfaceVerdict(Verdict):
@@ -70,18 +89,24 @@ class Interface(Constraint):
         return self._verdict
 
     def loss(self, batch: Batch) -> Tensor:
+        distance = self.setting.cfg.losses.interface_distance
+        reach = 2.0 * length_scale(self.setting.problem)  # the domain's longest side
         fi = batch.f["interface"].reshape(-1)
+        if distance:
+            fi = level_distance(fi, batch.g["interface"].reshape(-1, batch.d), reach)
         weight = self.setting.cfg.sampling.interface_corner_weight
         if self.corners is None or weight <= 1:
             return self.fn(fi)
-        if batch.Z is None:
-            fc = batch.model(self.corners, None)
+        x, z = (self.corners, None) if batch.Z is None else fields.broadcast_latents(self.corners, batch.Z)
+        if distance:
+            v = fields.evaluate(batch.model, x, z, grad=True, create_graph=True)
+            fc = level_distance(v.f, v.grad, reach)
         else:
-            fc = batch.model(*fields.broadcast_latents(self.corners, batch.Z))
+            fc = batch.model(x, z)
         w = torch.cat([torch.ones_like(fi), torch.full_like(fc, weight)])
         return self.fn(torch.cat([fi, fc]), w)
 
     def target(self) -> float:
-        """``d^2`` with ``d`` half the interface tolerance: mean ``f^2`` on I."""
+        """``d^2`` with ``d`` half the interface tolerance: mean ``f^2`` (or squared distance) on I."""
         d = self.setting.half_tolerance()
         return d * d
