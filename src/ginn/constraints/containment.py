@@ -31,7 +31,7 @@ from collections.abc import Mapping, Sequence
 import torch
 from torch import Tensor
 
-from ..geometry.base import Region, near_any_interface
+from ..geometry.base import Region
 from ..losses.constraints import DesignRegionLoss, ObstacleLoss
 from ..problems.problem import Problem
 from .base import Constraint, Setting, Stage
@@ -122,13 +122,13 @@ class DesignRegion(_Containment):
         if self.slope == 0:
             return self.fn(fo)
         with torch.no_grad():
-            free = near_any_interface(problem.interfaces, xo.reshape(-1, batch.d), problem.interface_tolerance)
+            free = problem.near_interfaces(xo.reshape(-1, batch.d))
         fo = torch.where(free, torch.zeros_like(fo), fo)
         srf = batch.surface()
         flat = srf.x.reshape(-1, batch.d)
         with torch.no_grad():
             out = srf.converged.reshape(-1) & ~self.setting.membership.contains(flat)
-            out &= ~near_any_interface(problem.interfaces, flat, problem.interface_tolerance)
+            out &= ~problem.near_interfaces(flat)
         if bool(out.any()):
             xs = flat[out]
             zs = None if batch.Z is None else batch.latents_of(srf.x)[out]

@@ -25,21 +25,15 @@ import torch
 from torch import Tensor
 
 from ..extract.curvature import boundary_curvatures, largest_curvature
-from ..geometry.base import near_any_interface
 from ..problems.problem import CurvatureBound, Problem
 from .base import Constraint, Setting, Stage
 from .batch import Batch
 from .verdict import Verdict, Violation, number_text
 
-__all__ = ["MinRadiusVerdict", "MinRadius", "CLIP", "near_an_interface", "curvature_hinge"]
+__all__ = ["MinRadiusVerdict", "MinRadius", "CLIP", "curvature_hinge"]
 
 #: the largest per-point value of the loss (``kappa r - 1``)
 CLIP = 10.0
-
-
-def near_an_interface(problem: Problem, x: Tensor) -> Tensor:
-    """``(n,)`` bool: the points of ``x (n, d)`` within the interface tolerance of an interface."""
-    return near_any_interface(problem.interfaces, x, problem.interface_tolerance)
 
 
 def curvature_hinge(batch: Batch, problem: Problem, radius: float,
@@ -51,7 +45,7 @@ def curvature_hinge(batch: Batch, problem: Problem, radius: float,
     if v.hessian.shape[0] == 0:
         return None
     with torch.no_grad():
-        keep = ~near_an_interface(problem, X[v.hessian_index])
+        keep = ~problem.near_interfaces(X[v.hessian_index])
     if not bool(keep.any()):
         return None
     k = torch.nan_to_num(curvature(v.hessian_grad[keep], v.hessian[keep]), nan=0.0, posinf=0.0, neginf=0.0)
@@ -76,7 +70,7 @@ class MinRadiusVerdict(Verdict):
         if len(k) == 0:
             return {"sharp_share": None, "curvature_max": None}
         with torch.no_grad():
-            keep = ~near_an_interface(self.problem, torch.as_tensor(x, dtype=torch.float64)).numpy()
+            keep = ~self.problem.near_interfaces(torch.as_tensor(x, dtype=torch.float64)).numpy()
         if not keep.any():
             return {"sharp_share": None, "curvature_max": None}
         k = k[keep]

@@ -29,7 +29,6 @@ from torch import Tensor
 
 from .. import fields
 from ..extract.overhang import exempt_elements, overhang_share
-from ..geometry.base import near_any_interface
 from ..problems.problem import Overhang as OverhangBound
 from ..problems.problem import Problem
 from .base import Constraint, Setting, Stage
@@ -104,8 +103,7 @@ class Overhang(Constraint):
 
     def _exempt(self, p: Tensor) -> Tensor:
         """``(m,)`` bool: surface points on the plate or near an interface."""
-        return (((p @ self.up) - self.plate).abs() <= self.tol) | near_any_interface(self.setting.problem.interfaces, p,
-                                                                                    self.tol)
+        return (((p @ self.up) - self.plate).abs() <= self.tol) | self.setting.problem.near_interfaces(p)
 
     def loss(self, batch: Batch) -> Tensor | None:
         srf = batch.surface()

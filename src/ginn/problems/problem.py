@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from ..geometry.base import Box, Interface, Region
+from ..geometry.base import Box, Interface, Region, near_any_interface
 from ..geometry.symmetry import Symmetry
 
 
@@ -268,6 +268,11 @@ class Problem:
     def interface_tolerance(self) -> float:
         """The interface tolerance as a distance, ``tolerances.interface * unit_scale``."""
         return float(self.tolerances.interface) * float(self.unit_scale)
+
+    def near_interfaces(self, x):
+        """``(n,)`` bool tensor: the points of ``x (n, d)`` (a tensor) within the interface tolerance
+        of an interface, the neighbourhood the verdicts leave to the interfaces."""
+        return near_any_interface(self.interfaces, x, self.interface_tolerance)
 
     @property
     def n_interface_components(self) -> int:
