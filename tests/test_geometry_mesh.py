@@ -88,6 +88,10 @@ def test_mesh_interface_components_normals_and_area(gen):
     assert I.measure() == pytest.approx(6 * 0.04 + 6 * 0.16)
     x, nrm = sample_interfaces([I], 4000, gen, dtype=F64)
     assert I.distance(x).max() < 1e-12
+    y = x + 0.05 * torch.randn(x.shape, generator=gen, dtype=F64)
+    d, q = I.nearest(y)  # the nearest point on the mesh, at the stated distance
+    torch.testing.assert_close((y - q).norm(dim=-1), d, atol=1e-12, rtol=0)
+    assert I.distance(q).max() < 1e-12
     comp = I.component_of(x)
     assert torch.equal(comp, (x[:, 0] > 0).long()) or torch.equal(comp, (x[:, 0] < 0).long())
     # area-uniform: the big box holds 0.96 / 1.2 = 80 % of the area

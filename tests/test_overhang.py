@@ -113,3 +113,34 @@ def test_loss_is_per_unit_of_down_facing_boundary():
     task = make_task(spec, spec.config(None, {"sampling": {"n_domain": 2048, "n_boundary": 128}}))
     terms = task.loss_terms(_Slab(), 0, {"overhang", "eikonal"}, torch.Generator().manual_seed(0))
     assert float(terms["overhang"].detach()) == pytest.approx(1 - math.sin(math.radians(45)), abs=1e-5)
+
+
+class _PlateWithHole(torch.nn.Module):
+    """The plate |y| <= 0.8 with a round hole of radius ``radius`` at the origin, an exact distance
+    near the hole's top and the plate's underside: both face straight down."""
+
+    def __init__(self, radius):
+        super().__init__()
+        self.radius = radius
+        self.p = torch.nn.Parameter(torch.zeros(()))
+
+    def forward(self, x, z=None):
+        return torch.maximum(x[:, 1].abs() - 0.8, self.radius - x.norm(dim=-1)) + 0 * self.p
+
+
+@pytest.mark.parametrize("radius", [0.3, 0.33])
+def test_loss_leaves_the_boundary_that_an_interface_is_still_pulling_in(radius):
+    """The hole's interface is the circle of radius 0.3. A hole of 0.33 lies 0.03 (six tolerances)
+    beyond it, the nearest its boundary comes to the interface: its ceiling is the interface's still
+    to place, not overhang to turn, so the loss is the underside's alone (1 - sin 45 per sample), as
+    when the hole sits on the interface; the underside, 0.5 from the interface, stays counted."""
+    spec = validate_spec({"name": "hole", "geometry": {
+        "dim": 2, "domain": {"lo": [-1, -1], "hi": [1, 1]},
+        "interfaces": [{"type": "circle", "center": [0, 0], "radius": 0.3}]},
+        "tolerances": {"interface": 0.005, "overhang": {"angle": 45, "up": [0, 1]}}})
+    task = make_task(spec, spec.config(None, {"sampling": {"n_domain": 4096, "n_boundary": 128}}))
+    c = next(c for c in task.constraints if isinstance(c, Overhang))
+    terms = task.loss_terms(_PlateWithHole(radius), 0, {"overhang", "eikonal"}, torch.Generator().manual_seed(0))
+    assert float(terms["overhang"].detach()) == pytest.approx(1 - math.sin(math.radians(45)), abs=1e-5)
+    x = torch.tensor([[0.0, radius], [0.0, -0.8]])
+    assert c._realising(_PlateWithHole(radius), x, None).tolist() == [True, False]

@@ -27,6 +27,7 @@ from ginn.geometry import (
     sample_interfaces_with_components,
     sample_outside,
 )
+from ginn.geometry.base import nearest_interface_points
 
 F64 = torch.float64
 
@@ -125,6 +126,31 @@ def test_distances_closed_forms():
     a = Annulus([0, 0, 0], [0, 0, 1], 1.0, 2.0)
     q = torch.tensor([[0.0, 0.0, 1.0], [1.5, 0.0, 0.5], [3.0, 0.0, 0.0]], dtype=F64)
     torch.testing.assert_close(a.distance(q), torch.tensor([math.sqrt(2.0), 0.5, 1.0], dtype=F64), atol=1e-12, rtol=0)
+
+
+def test_nearest_points_closed_forms_and_projections():
+    """The nearest point: closed forms on a cylinder wall (its rim beyond the end) and an annulus
+    (its inner circle); on every kind, a point of the interface at the stated distance."""
+    w = CylinderWall([0, 0, 0], [0, 0, 1], 1.0, 2.0)
+    d, q = w.nearest(torch.tensor([[2.0, 0.0, 0.5], [0.0, 2.0, 3.0]], dtype=F64))
+    torch.testing.assert_close(q, torch.tensor([[1.0, 0.0, 0.5], [0.0, 1.0, 1.0]], dtype=F64), atol=1e-12, rtol=0)
+    torch.testing.assert_close(d, torch.tensor([1.0, math.sqrt(5.0)], dtype=F64), atol=1e-12, rtol=0)
+    a = Annulus([0, 0, 0], [0, 0, 1], 1.0, 2.0)
+    d, q = a.nearest(torch.tensor([[0.5, 0.0, 1.0]], dtype=F64))
+    torch.testing.assert_close(q, torch.tensor([[1.0, 0.0, 0.0]], dtype=F64), atol=1e-12, rtol=0)
+    g = torch.Generator().manual_seed(3)
+    x3, x2 = torch.randn(300, 3, generator=g, dtype=F64), torch.randn(300, 2, generator=g, dtype=F64)
+    kinds = [(w, x3), (a, x3), (Circle([0.1, 0], 0.5), x2), (Polyline([[0, 0], [1, 0], [1, 1]]), x2),
+             (InterfaceUnion([w, a], merge=True), x3),
+             (TransformedInterface(w, rotation_matrix(3, 30.0, [1, 0, 0]), [0.1, 0.2, 0.3]), x3)]
+    for itf, x in kinds:
+        d, q = itf.nearest(x)
+        torch.testing.assert_close(d, itf.distance(x), atol=1e-12, rtol=0)
+        torch.testing.assert_close((x - q).norm(dim=-1), d, atol=1e-12, rtol=0)
+        assert itf.distance(q).max() < 1e-12, type(itf).__name__
+    d, q = nearest_interface_points([Circle([0, 0], 0.5), Circle([2, 0], 0.5)], torch.tensor([[1.8, 0.0], [0.1, 0.0]], dtype=F64))
+    torch.testing.assert_close(q, torch.tensor([[1.5, 0.0], [0.5, 0.0]], dtype=F64), atol=1e-12, rtol=0)
+    torch.testing.assert_close(d, torch.tensor([0.3, 0.4], dtype=F64), atol=1e-12, rtol=0)
 
 
 def test_bolt_hole_group_is_one_component(gen):

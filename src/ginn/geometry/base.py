@@ -8,6 +8,7 @@ positive outside; an interface's prescribed normal points *out of the shape* (th
 from __future__ import annotations
 
 import abc
+import math
 from dataclasses import dataclass
 
 import torch
@@ -74,6 +75,18 @@ class Interface(abc.ABC):
         """Unsigned distance ``(n, d) -> (n,)`` from each point to the interface."""
         raise NotImplementedError(f"{type(self).__name__} does not implement distance()")
 
+    def nearest(self, x: Tensor) -> tuple[Tensor, Tensor]:
+        """The distance ``(n,)`` from each point of ``x (n, d)`` to the interface and its nearest
+        point on it ``(n, d)``, ``x - d grad d``: :meth:`distance` is differentiated through, so a
+        subclass whose distance is a torch expression needs no projection of its own. No graph is
+        kept."""
+        with torch.enable_grad():
+            y = x.detach().clone().requires_grad_(True)
+            d = self.distance(y)
+            (g,) = torch.autograd.grad(d.sum(), y)
+        d = d.detach()
+        return d, y.detach() - d[:, None] * torch.nan_to_num(g, nan=0.0)
+
     def bounds(self) -> tuple[Tensor, Tensor] | None:
         """An axis-aligned box ``(lo, hi)`` (float64, ``(d,)`` each) containing the interface."""
         return None
@@ -89,6 +102,23 @@ def near_any_interface(interfaces, x: Tensor, tol: float) -> Tensor:
         except NotImplementedError:
             continue
     return out
+
+
+def nearest_interface_points(interfaces, x: Tensor) -> tuple[Tensor, Tensor]:
+    """The distance ``(n,)`` from each point of ``x (n, d)`` to the nearest of ``interfaces`` and
+    that nearest point ``(n, d)`` (:meth:`Interface.nearest`); ``inf`` (and ``x`` itself) where no
+    interface has a distance."""
+    best = torch.full((x.shape[0],), math.inf, dtype=x.dtype, device=x.device)
+    foot = x.detach().clone()
+    for itf in interfaces:
+        try:
+            d, q = itf.nearest(x)
+        except NotImplementedError:
+            continue
+        closer = d < best
+        best = torch.where(closer, d, best)
+        foot = torch.where(closer[:, None], q, foot)
+    return best, foot
 
 
 @dataclass(frozen=True)

@@ -297,6 +297,12 @@ class InterfaceUnion(Interface):
     def distance(self, x: Tensor) -> Tensor:
         return torch.stack([p.distance(x) for p in self.parts], dim=-1).min(dim=-1).values
 
+    def nearest(self, x: Tensor) -> tuple[Tensor, Tensor]:
+        ds, qs = zip(*(p.nearest(x) for p in self.parts))
+        j = torch.stack(ds, dim=-1).argmin(dim=-1)  # (n,)
+        rows = torch.arange(x.shape[0], device=x.device)
+        return torch.stack(ds, dim=-1)[rows, j], torch.stack(qs, dim=1)[rows, j]
+
     def component_of(self, x: Tensor) -> Tensor:
         if self.merge:
             return torch.zeros(x.shape[0], dtype=torch.long, device=x.device)
@@ -348,6 +354,10 @@ class TransformedInterface(Interface):
 
     def distance(self, x: Tensor) -> Tensor:
         return self.interface.distance(self._local(x))
+
+    def nearest(self, x: Tensor) -> tuple[Tensor, Tensor]:
+        d, q = self.interface.nearest(self._local(x))
+        return d, q @ like(self.rotation, q).T + like(self.translation, q)
 
     def component_of(self, x: Tensor) -> Tensor:
         return self.interface.component_of(self._local(x))

@@ -412,6 +412,14 @@ class MeshInterface(Interface):
         d, _ = self._dist.query(_to_numpy(x))
         return torch.from_numpy(d).to(device=x.device, dtype=x.dtype)
 
+    def nearest(self, x: Tensor) -> tuple[Tensor, Tensor]:
+        q = _to_numpy(x)
+        d, f = self._dist.query(q)
+        t = self._dist.tri[f]
+        c = closest_points_on_triangles(q, t[:, 0], t[:, 1], t[:, 2])
+        return (torch.from_numpy(d).to(device=x.device, dtype=x.dtype),
+                torch.from_numpy(c).to(device=x.device, dtype=x.dtype))
+
     def component_of(self, x: Tensor) -> Tensor:
         _, f = self._dist.query(_to_numpy(x))
         return torch.from_numpy(self._face_component[f]).to(device=x.device, dtype=torch.long)
