@@ -2,6 +2,7 @@
 loss on fields whose values along the segments are known, the spec and the verdicts."""
 
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -110,6 +111,36 @@ def test_verdicts_compare_the_share_with_its_bound():
     assert "min_thickness" in MinThicknessVerdict.describe(bad)
 
 
+def _measure_with(interfaces, inside, size):
+    """``thickness_removed`` of the node mask ``inside`` on ``_grid()`` for a problem on that grid's
+    box with ``interfaces`` (tolerance 0.005) and a least thickness ``size``."""
+    spec = validate_spec({"name": "rims", "geometry": {"dim": 2, "domain": {"lo": [-1.2, -0.5], "hi": [1.2, 0.5]},
+                                                      "interfaces": interfaces, "unit_scale": 1.0},
+                          "tolerances": {"interface": 0.005, "min_thickness": size}})
+    g, _, w = _grid()
+    return MinThicknessVerdict(spec.build()).measure(SimpleNamespace(inside=inside), SimpleNamespace(grid=g, weights=w),
+                                                     None, None)["thickness_removed"]
+
+
+def test_the_verdict_leaves_the_rims_an_interface_prescribes_and_counts_a_thin_wall_along_it():
+    """The bar |x| <= 1, |y| <= 0.2 with an interface along its top and right side: the three right
+    angles the interface prescribes (its vertices) are left out, the fourth corner still loses
+    (1 - pi / 4) r^2. A bar 0.05 thick under an interface along its middle half is removed but for
+    the half disks of radius 0.005 + 0.05 round the interface's ends (9.2 % of its area)."""
+    _, x, _ = _grid()
+    bar = (np.abs(x[..., 0]) <= 1.0) & (np.abs(x[..., 1]) <= 0.2)
+    r = 0.15
+    corner = {"type": "polyline", "points": [[-1, 0.2], [1, 0.2], [1, -0.2]]}
+    assert _measure_with([corner], bar, 2 * r) == pytest.approx((1 - math.pi / 4) * r * r / 0.8, rel=0.1)
+    thin = (np.abs(x[..., 0]) <= 1.0) & (np.abs(x[..., 1]) <= 0.025)
+    R, d = 0.055, 0.05  # the left-out disk round each end, and the bar's thickness below its centre
+    cap = R * R * math.acos(d / R) - d * math.sqrt(R * R - d * d)
+    kept = 2 * (math.pi * R * R / 2 - cap) / (2.0 * 0.05)
+    assert _measure_with([{"type": "segment", "a": [-0.5, 0.025], "b": [0.5, 0.025]}], thin, 0.1) == pytest.approx(1 - kept, rel=0.02)
+    assert _measure_with([{"type": "circle", "center": [0, 0], "radius": 0.3}], bar, 2 * r) == pytest.approx(
+        4 * (1 - math.pi / 4) * r * r / 0.8, rel=0.1)  # a circle has no rim
+
+
 # --- the normal segment loss ---------------------------------------------------------------------
 
 
@@ -180,7 +211,9 @@ def test_eval_says_when_its_grid_cannot_see_the_ball():
     assert "min_thickness: the ball of diameter 0.05 spans 1.6 cells" in ev.text() and "--resolution 120" in ev.text()
     assert ShapeEvaluation.from_json(ev.to_json()).unresolved == ev.unresolved
     fine = evaluate_shapes(bar, None, p, resolution=120, verdicts=verdicts)
-    assert fine.unresolved == {} and fine.shapes[0].get("thickness_removed") == 1.0
+    # the bar is removed whole but within 0.005 + 0.025 of the interface's end points (its rim),
+    # across the bar round x = -0.9: 0.02 x 0.0589 of its area 0.038
+    assert fine.unresolved == {} and fine.shapes[0].get("thickness_removed") == pytest.approx(1 - 0.02 * 0.0589 / 0.038, abs=0.01)
 
 
 class _Disk(torch.nn.Module):

@@ -89,6 +89,11 @@ def test_mesh_interface_components_normals_and_area(gen):
     x, nrm = sample_interfaces([I], 4000, gen, dtype=F64)
     assert I.distance(x).max() < 1e-12
     y = x + 0.05 * torch.randn(x.shape, generator=gen, dtype=F64)
+    assert torch.isinf(I.rim_distance(y)).all()  # closed boxes: no open edge
+    open_box = trimesh.creation.box(extents=[1.0, 1.0, 1.0])
+    open_box.update_faces(open_box.face_normals[:, 2] < 0.5)  # without its top: the rim is the square z = 0.5
+    rim = MeshInterface(open_box).rim_distance(torch.tensor([[0.0, 0.0, 0.5], [0.5, 0.5, 1.0], [0.3, 0.0, 0.5]], dtype=F64))
+    torch.testing.assert_close(rim, torch.tensor([0.5, 0.5, 0.2], dtype=F64))
     d, q = I.nearest(y)  # the nearest point on the mesh, at the stated distance
     torch.testing.assert_close((y - q).norm(dim=-1), d, atol=1e-12, rtol=0)
     assert I.distance(q).max() < 1e-12

@@ -153,6 +153,24 @@ def test_nearest_points_closed_forms_and_projections():
     torch.testing.assert_close(d, torch.tensor([0.3, 0.4], dtype=F64), atol=1e-12, rtol=0)
 
 
+def test_rims_closed_forms():
+    """The rim: a cylinder wall's end circles, an annulus's two circles, a polyline's vertices, a
+    bolt hole's group (the wall's top circle is the ring's inner one); a circle has none."""
+    w = CylinderWall([0, 0, 0], [0, 0, 1], 1.0, 2.0)
+    q = torch.tensor([[0.0, 0.0, 0.0], [2.0, 0.0, 0.5], [1.0, 0.0, 1.0]], dtype=F64)
+    torch.testing.assert_close(w.rim_distance(q), torch.tensor([math.sqrt(2.0), math.sqrt(1.25), 0.0], dtype=F64))
+    a = Annulus([0, 0, 1], [0, 0, 1], 1.0, 2.0)
+    q = torch.tensor([[1.4, 0.0, 1.0], [1.5, 0.0, 1.5], [0.0, 0.0, 1.0]], dtype=F64)
+    torch.testing.assert_close(a.rim_distance(q), torch.tensor([0.4, math.sqrt(0.5), 1.0], dtype=F64))
+    p = Polyline([[0, 0], [1, 0], [1, 1]])
+    torch.testing.assert_close(p.rim_distance(torch.tensor([[0.5, 0.0], [1.0, 0.6]], dtype=F64)),
+                               torch.tensor([0.5, 0.4], dtype=F64))
+    assert torch.isinf(Circle([0, 0], 1.0).rim_distance(torch.zeros(3, 2, dtype=F64))).all()
+    g = InterfaceUnion([w, a], merge=True)
+    torch.testing.assert_close(g.rim_distance(torch.tensor([[1.0, 0.0, 1.0], [1.5, 0.0, 1.0]], dtype=F64)),
+                               torch.tensor([0.0, 0.5], dtype=F64))
+
+
 def test_bolt_hole_group_is_one_component(gen):
     wall = CylinderWall([0.4, 0.8, -0.3], [0, 0, 1], 0.057, 0.087)
     ring = Annulus([0.4, 0.8, -0.2565], [0, 0, 1], 0.057, 0.0888)

@@ -5,11 +5,12 @@ than a fillet of radius ``r``, i.e. every principal curvature at most ``1 / r`` 
 Verdict: ``sharp_share``, the share of the boundary (area-uniform points on the zero level set
 near the extracted boundary, :func:`ginn.extract.curvature.boundary_curvatures`) whose largest
 absolute principal curvature exceeds ``1 / r``, the points within the interface tolerance of an
-interface left out; at most ``share``. ``ginn eval`` also reports the largest curvature found,
+interface or within the tolerance plus ``r`` of its rim left out (the edges an interface prescribes,
+:meth:`ginn.problems.Problem.near_rims`); at most ``share``. ``ginn eval`` also reports the largest curvature found,
 ``curvature_max``.
 
 Loss: at the surface samples with Hessians (:meth:`ginn.constraints.Batch.surface_hessians`) away
-from the interfaces, the mean of ``min(relu(kappa r - 1), CLIP)``, ``kappa`` the largest absolute
+from the interfaces and their rims, the mean of ``min(relu(kappa r - 1), CLIP)``, ``kappa`` the largest absolute
 principal curvature: dimensionless, zero where the boundary is as smooth as asked, and clipped
 where a sample lands on a near-singular point of the field, as the strain is.
 """
@@ -39,13 +40,14 @@ CLIP = 10.0
 def curvature_hinge(batch: Batch, problem: Problem, radius: float,
                     curvature: Callable[[Tensor, Tensor], Tensor]) -> Tensor | None:
     """The mean of ``min(relu(kappa radius - 1), CLIP)`` at the surface samples with Hessians away
-    from the interfaces, ``kappa = curvature(grad (q, d), hess (q, d, d)) -> (q,)``; None where no
-    sample is left."""
+    from the interfaces and their rims (:meth:`ginn.problems.Problem.near_rims`), ``kappa =
+    curvature(grad (q, d), hess (q, d, d)) -> (q,)``; None where no sample is left."""
     v, X = batch.surface_hessians()
     if v.hessian.shape[0] == 0:
         return None
     with torch.no_grad():
-        keep = ~problem.near_interfaces(X[v.hessian_index])
+        x = X[v.hessian_index]
+        keep = ~(problem.near_interfaces(x) | problem.near_rims(x, radius))
     if not bool(keep.any()):
         return None
     k = torch.nan_to_num(curvature(v.hessian_grad[keep], v.hessian[keep]), nan=0.0, posinf=0.0, neginf=0.0)
@@ -70,7 +72,8 @@ class MinRadiusVerdict(Verdict):
         if len(k) == 0:
             return {"sharp_share": None, "curvature_max": None}
         with torch.no_grad():
-            keep = ~self.problem.near_interfaces(torch.as_tensor(x, dtype=torch.float64)).numpy()
+            xt = torch.as_tensor(x, dtype=torch.float64)
+            keep = ~(self.problem.near_interfaces(xt) | self.problem.near_rims(xt, self.bound.radius)).numpy()
         if not keep.any():
             return {"sharp_share": None, "curvature_max": None}
         k = k[keep]

@@ -17,6 +17,7 @@ from torch import Tensor
 
 from ..extract.boundary import Boundary, extract_boundary
 from ..extract.grid import Grid, label_components, make_grid
+from ..extract.proximity import nodes_near
 from ..extract.sampling import sample_field
 from ..fields import Field, as_field
 from ..geometry.base import Box, Region
@@ -112,36 +113,12 @@ def _design_boundary_samples(
     return x, w
 
 
-def near_interfaces(problem: Problem, grid: Grid, among: np.ndarray, chunk: int = 1 << 18) -> np.ndarray:
+def near_interfaces(problem: Problem, grid: Grid, among: np.ndarray) -> np.ndarray:
     """``(grid.shape)`` bool: the nodes of the mask ``among`` within the interface tolerance
-    ``tolerances.interface * unit_scale`` of an interface (exact distances, only for the nodes of
-    ``among`` inside an interface's bounding box widened by the tolerance; an interface without
+    ``tolerances.interface * unit_scale`` of an interface (exact distances; an interface without
     :meth:`~ginn.geometry.base.Interface.distance` marks none)."""
-    out = np.zeros(grid.shape, dtype=bool)
     h = float(problem.tolerances.interface) * float(problem.unit_scale)
-    if not problem.interfaces or h <= 0:
-        return out
-    flat = out.reshape(-1)
-    coords = [grid.axis_coords(a) for a in range(grid.dim)]
-    for itf in problem.interfaces:
-        b = itf.bounds()
-        box = np.ones(grid.shape, dtype=bool)
-        if b is not None:
-            lo, hi = b[0].double().cpu().numpy() - h, b[1].double().cpu().numpy() + h
-            for a in range(grid.dim):
-                sel = (coords[a] >= lo[a]) & (coords[a] <= hi[a])
-                box &= sel.reshape([-1 if i == a else 1 for i in range(grid.dim)])
-        idx = np.flatnonzero((box & among & ~out).reshape(-1))
-        for s in range(0, idx.size, chunk):
-            part = idx[s : s + chunk]
-            x = np.stack([coords[a][i] for a, i in enumerate(np.unravel_index(part, grid.shape))], axis=1)
-            try:
-                with torch.no_grad():
-                    d = itf.distance(torch.as_tensor(x, dtype=torch.float64)).double().cpu().numpy()
-            except NotImplementedError:  # an interface class without distances excludes nothing
-                break
-            flat[part[d <= h]] = True
-    return out
+    return nodes_near(problem.interfaces, grid, among, h) if h > 0 else np.zeros(grid.shape, dtype=bool)
 
 
 def prepare_context(

@@ -53,23 +53,30 @@ def opening(mask: np.ndarray, spacing: np.ndarray, size: float) -> np.ndarray:
     return (reach <= r)[inner] & np.asarray(mask, dtype=bool)
 
 
-def opening_removed(inside: np.ndarray, spacing: np.ndarray, size: float, weights: np.ndarray) -> float | None:
+def opening_removed(inside: np.ndarray, spacing: np.ndarray, size: float, weights: np.ndarray,
+                    left_out: np.ndarray | None = None) -> float | None:
     """The share of the shape's volume (nodes ``inside``, trapezoid ``weights``) that the opening
     by a ball of diameter ``size`` removes: 0 when every part is at least ``size`` thick, 1 when
-    none is (None for an empty shape)."""
+    none is (None for an empty shape). Removed nodes of the mask ``left_out`` are not counted."""
     total = float(weights[inside].sum(dtype=np.float64))
     if total <= 0:
         return None
-    kept = opening(inside, spacing, size)
-    return float(weights[inside & ~kept].sum(dtype=np.float64)) / total
+    gone = inside & ~opening(inside, spacing, size)
+    if left_out is not None:
+        gone &= ~left_out
+    return float(weights[gone].sum(dtype=np.float64)) / total
 
 
-def closing_added(inside: np.ndarray, spacing: np.ndarray, size: float, weights: np.ndarray) -> float | None:
+def closing_added(inside: np.ndarray, spacing: np.ndarray, size: float, weights: np.ndarray,
+                  left_out: np.ndarray | None = None) -> float | None:
     """The volume the closing by a ball of diameter ``size`` adds to the shape (the void that the
-    ball does not fit into), as a share of the shape's volume (None for an empty shape)."""
+    ball does not fit into), as a share of the shape's volume (None for an empty shape). Added
+    nodes of the mask ``left_out`` are not counted."""
     total = float(weights[inside].sum(dtype=np.float64))
     if total <= 0:
         return None
     void = ~np.asarray(inside, dtype=bool)
-    kept = opening(void, spacing, size)
-    return float(weights[void & ~kept].sum(dtype=np.float64)) / total
+    added = void & ~opening(void, spacing, size)
+    if left_out is not None:
+        added &= ~left_out
+    return float(weights[added].sum(dtype=np.float64)) / total

@@ -75,6 +75,13 @@ class Interface(abc.ABC):
         """Unsigned distance ``(n, d) -> (n,)`` from each point to the interface."""
         raise NotImplementedError(f"{type(self).__name__} does not implement distance()")
 
+    def rim_distance(self, x: Tensor) -> Tensor:
+        """Unsigned distance ``(n, d) -> (n,)`` from each point to the interface's rim: where it ends
+        or turns (the end circles of a cylinder wall, the circles of an annulus, the vertices of a
+        polyline, the open edges of a mesh), the edges that it prescribes to the shape. ``inf``
+        where it has none (a circle; the default)."""
+        return torch.full((x.shape[0],), math.inf, dtype=x.dtype, device=x.device)
+
     def nearest(self, x: Tensor) -> tuple[Tensor, Tensor]:
         """The distance ``(n,)`` from each point of ``x (n, d)`` to the interface and its nearest
         point on it ``(n, d)``, ``x - d grad d``: :meth:`distance` is differentiated through, so a
@@ -119,6 +126,15 @@ def nearest_interface_points(interfaces, x: Tensor) -> tuple[Tensor, Tensor]:
         best = torch.where(closer, d, best)
         foot = torch.where(closer[:, None], q, foot)
     return best, foot
+
+
+def near_any_rim(interfaces, x: Tensor, reach: float) -> Tensor:
+    """``(n,)`` bool: the points of ``x (n, d)`` within ``reach`` of the rim of one of
+    ``interfaces`` (:meth:`Interface.rim_distance`)."""
+    out = torch.zeros(x.shape[0], dtype=torch.bool, device=x.device)
+    for itf in interfaces:
+        out |= itf.rim_distance(x) <= reach
+    return out
 
 
 @dataclass(frozen=True)

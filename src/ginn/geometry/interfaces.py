@@ -118,6 +118,10 @@ class Polyline(Interface):
     def distance(self, x: Tensor) -> Tensor:
         return _segments_distance(x, like(self.a, x), like(self.b, x)).min(dim=-1).values
 
+    def rim_distance(self, x: Tensor) -> Tensor:
+        """To the nearest vertex (the end points and the corners)."""
+        return torch.cdist(x, like(self.points, x)).min(dim=-1).values
+
     def bounds(self):
         return self.points.min(0).values, self.points.max(0).values
 
@@ -203,6 +207,13 @@ class CylinderWall(Interface):
         dt = (t.abs() - self.length / 2).clamp_min(0)
         return torch.sqrt((rho - self.radius) ** 2 + dt**2)
 
+    def rim_distance(self, x: Tensor) -> Tensor:
+        """To the nearer of the two end circles."""
+        p = x - like(self.center, x)
+        t = p @ like(self.axis, x)
+        rho = (p - t[:, None] * like(self.axis, x)).norm(dim=-1)
+        return torch.sqrt((rho - self.radius) ** 2 + (t.abs() - self.length / 2) ** 2)
+
     def bounds(self):
         a = self.axis
         ext = (a.abs() * self.length / 2) + self.radius * (1 - a * a).clamp_min(0).sqrt()
@@ -243,6 +254,16 @@ class Annulus(Interface):
         h = p @ like(self.normal, x)
         rho = (p - h[:, None] * like(self.normal, x)).norm(dim=-1)
         dr = torch.maximum((self.r_inner - rho).clamp_min(0), (rho - self.r_outer).clamp_min(0))
+        return torch.sqrt(h**2 + dr**2)
+
+    def rim_distance(self, x: Tensor) -> Tensor:
+        """To the nearer of its outer and (``r_inner > 0``) inner circle."""
+        p = x - like(self.center, x)
+        h = p @ like(self.normal, x)
+        rho = (p - h[:, None] * like(self.normal, x)).norm(dim=-1)
+        dr = (rho - self.r_outer).abs()
+        if self.r_inner > 0:
+            dr = torch.minimum(dr, (rho - self.r_inner).abs())
         return torch.sqrt(h**2 + dr**2)
 
     def bounds(self):
@@ -296,6 +317,9 @@ class InterfaceUnion(Interface):
 
     def distance(self, x: Tensor) -> Tensor:
         return torch.stack([p.distance(x) for p in self.parts], dim=-1).min(dim=-1).values
+
+    def rim_distance(self, x: Tensor) -> Tensor:
+        return torch.stack([p.rim_distance(x) for p in self.parts], dim=-1).min(dim=-1).values
 
     def nearest(self, x: Tensor) -> tuple[Tensor, Tensor]:
         ds, qs = zip(*(p.nearest(x) for p in self.parts))
@@ -354,6 +378,9 @@ class TransformedInterface(Interface):
 
     def distance(self, x: Tensor) -> Tensor:
         return self.interface.distance(self._local(x))
+
+    def rim_distance(self, x: Tensor) -> Tensor:
+        return self.interface.rim_distance(self._local(x))
 
     def nearest(self, x: Tensor) -> tuple[Tensor, Tensor]:
         d, q = self.interface.nearest(self._local(x))

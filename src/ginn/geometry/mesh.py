@@ -369,6 +369,7 @@ class MeshInterface(Interface):
         self.mesh = mesh
         self.dim = 3
         self.has_normals = mode != "none"
+        self._rim = None  # the open edges (m, 2, 3) and a KD-tree of their midpoints, on first use
         v = np.asarray(mesh.vertices, dtype=np.float64)
         f = np.asarray(mesh.faces, dtype=np.int64)
         self._tri = torch.from_numpy(v[f])  # (F, 3, 3)
@@ -410,6 +411,27 @@ class MeshInterface(Interface):
 
     def distance(self, x: Tensor) -> Tensor:
         d, _ = self._dist.query(_to_numpy(x))
+        return torch.from_numpy(d).to(device=x.device, dtype=x.dtype)
+
+    def rim_distance(self, x: Tensor) -> Tensor:
+        """To the nearest open edge (an edge of one face only); ``inf`` for a closed mesh. Exact
+        when that edge is among the 8 with the nearest midpoints."""
+        if self._rim is None:
+            e = np.sort(np.asarray(self.mesh.faces, dtype=np.int64)[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+            uniq, count = np.unique(e, axis=0, return_counts=True)
+            v = np.asarray(self.mesh.vertices, dtype=np.float64)
+            seg = v[uniq[count == 1]]  # (m, 2, 3)
+            self._rim = (seg, cKDTree(seg.mean(axis=1)) if len(seg) else None)
+        seg, tree = self._rim
+        if tree is None:
+            return torch.full((x.shape[0],), float("inf"), dtype=x.dtype, device=x.device)
+        q = _to_numpy(x)
+        k = min(8, len(seg))
+        _, j = tree.query(q, k=k)
+        j = j.reshape(len(q), k)
+        pp = q[:, None, :]
+        c = closest_on_segments(pp, seg[j, 0], seg[j, 1])
+        d = np.linalg.norm(c - pp, axis=-1).min(axis=1)
         return torch.from_numpy(d).to(device=x.device, dtype=x.dtype)
 
     def nearest(self, x: Tensor) -> tuple[Tensor, Tensor]:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from ..geometry.base import Box, Interface, Region, near_any_interface
+from ..geometry.base import Box, Interface, Region, near_any_interface, near_any_rim
 from ..geometry.symmetry import Symmetry
 
 
@@ -273,6 +273,14 @@ class Problem:
         """``(n,)`` bool tensor: the points of ``x (n, d)`` (a tensor) within the interface tolerance
         of an interface, the neighbourhood the verdicts leave to the interfaces."""
         return near_any_interface(self.interfaces, x, self.interface_tolerance)
+
+    def near_rims(self, x, radius: float):
+        """``(n,)`` bool tensor: the points of ``x (n, d)`` within the interface tolerance plus
+        ``radius`` of an interface's rim (:meth:`ginn.geometry.Interface.rim_distance`). An
+        interface's rim is an edge the spec prescribes: no shape that meets the interface rounds it
+        to ``radius`` there, so the verdicts and losses of a least radius (thickness, gap, fillet)
+        leave this neighbourhood to the interfaces."""
+        return near_any_rim(self.interfaces, x, self.interface_tolerance + float(radius))
 
     @property
     def n_interface_components(self) -> int:
