@@ -98,3 +98,21 @@ def test_loss_is_the_curvature_beyond_the_bound_in_units_of_it(radius, expected)
     assert [c for c in task.constraints if isinstance(c, MinRadius)]
     terms = task.loss_terms(DiskField(0.1), 0, {"fillet", "eikonal"}, torch.Generator().manual_seed(0))
     assert float(terms["fillet"].detach()) == pytest.approx(expected, abs=1e-4)
+
+
+def test_the_verdict_leaves_out_the_edges_an_interface_prescribes():
+    """The rounded rectangle of the test above (corners of radius 0.1) with an interface along its
+    right side, from corner to corner: its end points are rims, so the right-hand arcs and the
+    boundary within 0.005 + 0.2 of them are left out, and the share is the two left-hand arcs'
+    over what is left (the right side lies on the interface)."""
+    a, b, rho, radius = 0.6, 0.4, 0.1, 0.2
+    field = _rounded_rectangle(a, b, rho)
+    bd, g = _boundary(field, 2, 400)
+    spec = validate_spec({**SPEC, "geometry": {**SPEC["geometry"], "interfaces": [
+        {"type": "segment", "a": [a, -b], "b": [a, b]}]}, "tolerances": {"min_radius": radius, "interface": 0.005}})
+    m = MinRadiusVerdict(spec.build()).measure(SimpleNamespace(boundary=bd), SimpleNamespace(grid=g), field, None)
+    arc = math.pi * rho / 2
+    total = 4 * (a + b) - 8 * rho + 4 * arc
+    left = 2 * arc + 2 * (b - rho) + 2 * (0.205 - rho)  # the right arcs and side, the top and bottom near them
+    assert m["sharp_share"] == pytest.approx(2 * arc / (total - left), abs=0.02)
+    assert 2 * arc / (total - left) < 4 * arc / (total - 2 * (b - rho)) - 0.07  # what the interface band alone left
