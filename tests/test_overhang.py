@@ -144,3 +144,23 @@ def test_loss_leaves_the_boundary_that_an_interface_is_still_pulling_in(radius):
     assert float(terms["overhang"].detach()) == pytest.approx(1 - math.sin(math.radians(45)), abs=1e-5)
     x = torch.tensor([[0.0, radius], [0.0, -0.8]])
     assert c._realising(_PlateWithHole(radius), x, None).tolist() == [True, False]
+
+
+def test_the_verdict_leaves_the_boundary_that_realises_an_interface_to_it():
+    """The plate with a hole of radius 0.33 round an interface circle of 0.3: the hole's ceiling is
+    the nearest the boundary comes to the interface, so it is the interface's, not overhang; what
+    faces down beyond 45 degrees is the underside alone, all of it. Exempting by the distance alone
+    counted the ceiling's 90-degree arc too: (2 + 0.33 pi / 2) / (2 + 0.33 pi) of the down-facing
+    boundary."""
+    from ginn.extract.overhang import realising_elements
+    from ginn.geometry import Circle
+
+    b = _boundary(lambda x: np.maximum(np.abs(x[..., 1]) - 0.8, 0.33 - np.linalg.norm(x, axis=-1)), [-1, -1], [1, 1], (512, 512))
+    up, hole = np.array([0.0, 1.0]), [Circle([0.0, 0.0], 0.3)]
+    by_distance = exempt_elements(b, up, plate=-1.0, tol=0.005, interfaces=hole)
+    r = 0.33
+    assert overhang_share(b, up, 45.0, by_distance) == pytest.approx((2 + r * math.pi / 2) / (2 + r * math.pi), rel=0.01)
+    realising = realising_elements(b, hole, 0.005)
+    c = b.vertices[b.elements].mean(axis=1)
+    assert np.array_equal(realising, np.abs(np.linalg.norm(c, axis=1) - r) < 0.01)  # the hole, not the plate
+    assert overhang_share(b, up, 45.0, by_distance | realising) == pytest.approx(1.0, abs=1e-9)

@@ -5,8 +5,12 @@ build plate and at the interfaces.
 Verdict: ``overhang_share``, the share of the down-facing boundary of the extracted shape that
 overhangs (:func:`ginn.extract.overhang.overhang_share`), at most ``share``. The plate is the
 height ``plate`` along ``up`` (the domain's lowest point along ``up`` when the spec gives none);
-the plate and the interfaces are exempt within the interface tolerance
-``tolerances.interface * unit_scale``.
+the plate is exempt within the interface tolerance ``tol = tolerances.interface * unit_scale``,
+and so is the boundary that realises an interface: within ``tol`` of it, or, farther, as near as
+the boundary comes to its nearest interface point ``q``, within ``tol``
+(``|p - q| <= tol + dist(q, boundary)``, :func:`ginn.extract.overhang.realising_elements`). That
+is the interface's surface wherever the shape has put it; how far it is from the interface is the
+interface verdict's to judge.
 
 Loss: at the surface samples (points projected onto ``f = 0``) that are not exempt, the sum of
 ``relu(-n . up - sin(angle))``, ``n = grad f / |grad f|`` differentiable w.r.t. the parameters (how
@@ -16,16 +20,15 @@ much of a shape faces up. It rotates the normals of the overhanging parts
 towards the limit, which raises their underside into a self-supporting slope; a normal has no
 scale, so its weight is a number like the prescribed normals'.
 
-The loss also leaves out the surface samples that realise an interface the shape has not reached
-yet: those as near as the boundary comes to their nearest interface point ``q``, within the
-tolerance (``|p - q| <= tol + dist(q, {f = 0})``, the distance to first order). An exemption by
-the distance to the interface alone is unstable: a ceiling that an interface prescribes (the top of
-a horizontal hole faces straight down) and that drifts past the tolerance is overhang to the loss,
-which then tilts it further away, and the interface's mean distance (CD1, the verdict) tolerates
-the drift. On the bracket with manufacturing bounds that turned both pin holes into teardrops, open
-at the top over part of their length, with the overhang at 1.04 to 1.32 % of the down-facing
-area, all of it 0.005 to 0.02 from the pin holes (``docs/results.md``, "Manufacturing constraints
-on the bracket"). The verdict keeps the distance alone: a shape's boundary is judged where it is.
+The loss leaves out the same samples as the verdict, the distance to ``q``'s boundary taken to
+first order (``dist(q, {f = 0}) = |f(q)| / |grad f(q)|``). An exemption by the distance to the
+interface alone is unstable: a ceiling that an interface prescribes (the top of a horizontal hole
+faces straight down) and that drifts past the tolerance is overhang to the loss, which then tilts
+it further away, while the interface's mean distance (CD1) tolerates the drift. On the bracket with
+manufacturing bounds that turned both clevis pin holes into teardrops, open at the top over part of
+their length, and nearly all that the verdict counted as overhang (1.04 to 1.32 % of the
+down-facing area) lay 0.005 to 0.02 from the pin holes (``docs/results.md``, "Manufacturing
+constraints on the bracket").
 """
 
 from __future__ import annotations
@@ -39,7 +42,7 @@ import torch
 from torch import Tensor
 
 from .. import fields
-from ..extract.overhang import exempt_elements, overhang_share
+from ..extract.overhang import element_normals, exempt_elements, overhang_share, realising_elements
 from ..geometry.base import nearest_interface_points
 from ..problems.derived import length_scale
 from ..problems.problem import Overhang as OverhangBound
@@ -75,7 +78,10 @@ class OverhangVerdict(Verdict):
     def measure(self, shape, context, field, z) -> dict[str, Any]:
         b = shape.boundary
         up = np.asarray(self.bound.up, dtype=np.float64)
-        exempt = exempt_elements(b, up, self.plate, self.problem.interface_tolerance, self.problem.interfaces)
+        tol = self.problem.interface_tolerance
+        exempt = exempt_elements(b, up, self.plate, tol, self.problem.interfaces)
+        down = -(element_normals(b) @ (up / np.linalg.norm(up)))
+        exempt |= realising_elements(b, self.problem.interfaces, tol, ~exempt & (down > 0))
         return {"overhang_share": overhang_share(b, self.bound.up, self.bound.angle, exempt)}
 
     def violation(self, metrics: Mapping) -> Violation | None:

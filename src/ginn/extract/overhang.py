@@ -8,9 +8,9 @@ half-angle ``90 - theta`` round its lowest point: ``1 - sin(theta)`` of its down
 circle (2D) on the arc of ``2 (90 - theta)`` degrees, ``1 - theta / 90`` of its lower half.
 
 Elements are exempt where a part may face down at any angle: on the build plate (the height
-``plate`` along ``up``, within ``tol``) and at the interfaces (within ``tol`` of one), as are the
-caps where the domain cuts the shape (not a surface of the part). The share is taken over the
-down-facing area that is not exempt.
+``plate`` along ``up``, within ``tol``) and at the interfaces (within ``tol`` of one, or realising
+one farther away, :func:`realising_elements`), as are the caps where the domain cuts the shape (not
+a surface of the part). The share is taken over the down-facing area that is not exempt.
 """
 
 from __future__ import annotations
@@ -21,10 +21,10 @@ from collections.abc import Sequence
 import numpy as np
 import torch
 
-from ..geometry.base import Interface, near_any_interface
+from ..geometry.base import Interface, near_any_interface, nearest_interface_points
 from .boundary import Boundary
 
-__all__ = ["element_normals", "overhang_share", "exempt_elements"]
+__all__ = ["element_normals", "overhang_share", "exempt_elements", "realising_elements"]
 
 
 def element_normals(boundary: Boundary) -> np.ndarray:
@@ -50,6 +50,29 @@ def exempt_elements(boundary: Boundary, up: np.ndarray, plate: float, tol: float
     if len(c) and interfaces:
         with torch.no_grad():
             out |= near_any_interface(interfaces, torch.as_tensor(c, dtype=torch.float64), tol).cpu().numpy()
+    return out
+
+
+def realising_elements(boundary: Boundary, interfaces: Sequence[Interface], tol: float,
+                       among: np.ndarray | None = None) -> np.ndarray:
+    """``(m,)`` bool: the elements (of the mask ``among``) that realise an interface: their centroid
+    ``c`` is, within ``tol``, as near as the boundary comes to the interface point ``q`` nearest
+    to ``c``: ``|c - q| <= tol + dist(q, boundary)``. Within ``tol`` of an interface every element
+    does; farther, the elements where the boundary follows an interface it has not reached."""
+    out = np.zeros(boundary.n_elements, dtype=bool)
+    if not interfaces or boundary.n_elements == 0:
+        return out
+    idx = np.flatnonzero(np.ones(boundary.n_elements, dtype=bool) if among is None else among)
+    if idx.size == 0:
+        return out
+    c = boundary.vertices[boundary.elements[idx]].mean(axis=1)
+    with torch.no_grad():
+        d, q = nearest_interface_points(interfaces, torch.as_tensor(c, dtype=torch.float64))
+    d, q = d.cpu().numpy(), q.cpu().numpy()
+    ok = np.isfinite(d)
+    reach = np.full(idx.size, -np.inf)
+    reach[ok] = tol + boundary.distance(q[ok])
+    out[idx] = d <= reach
     return out
 
 
