@@ -148,7 +148,9 @@ def test_plateau_view_shows_the_reference_surface(tmp_path):
 
 def test_a_problem_with_manufacturing_tolerances_marks_them_in_every_frame(tmp_path):
     """A field whose shape is a thin bar (0.04 thick) under a min_thickness of 0.1: each frame
-    carries a second trace outlining it; without the tolerance there is none."""
+    carries a second trace outlining it, but for the neighbourhood of the interface's end points
+    (its rims, within 0.005 + 0.05: |x| > 0.449 on the bar), as the verdict counts it; without the
+    tolerance there is none."""
     from ginn.fields import as_field
     from ginn.problems import validate_spec
     from ginn.viz.explorer import write_explorer
@@ -164,7 +166,7 @@ def test_a_problem_with_manufacturing_tolerances_marks_them_in_every_frame(tmp_p
     x = marks[0]["x"]  # plotly writes arrays as base64 typed arrays
     xs = np.frombuffer(base64.b64decode(x["bdata"]), dtype=x["dtype"]) if isinstance(x, dict) else np.asarray(x, float)
     xs = xs[np.isfinite(xs)]
-    assert xs.min() < -0.45 and xs.max() > 0.45  # the outline spans the bar
+    assert -0.47 < xs.min() < -0.43 and 0.43 < xs.max() < 0.47  # the bar less its rims, within a cell
     plain = write_explorer(field, None, validate_spec({**spec, "tolerances": {}}).build(), tmp_path / "p.html",
                            resolution=128).read_text()
     assert all(t.get("name") != "thin, narrow or overhanging" for t in _figure(plain)[0])

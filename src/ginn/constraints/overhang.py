@@ -75,14 +75,17 @@ class OverhangVerdict(Verdict):
         self.bound: OverhangBound = problem.tolerances.overhang
         self.plate = plate_height(problem, self.bound)
 
-    def measure(self, shape, context, field, z) -> dict[str, Any]:
-        b = shape.boundary
+    def exempt(self, boundary) -> np.ndarray:
+        """``(m,)`` bool: the elements of ``boundary`` exempt (module docstring)."""
         up = np.asarray(self.bound.up, dtype=np.float64)
         tol = self.problem.interface_tolerance
-        exempt = exempt_elements(b, up, self.plate, tol, self.problem.interfaces)
-        down = -(element_normals(b) @ (up / np.linalg.norm(up)))
-        exempt |= realising_elements(b, self.problem.interfaces, tol, ~exempt & (down > 0))
-        return {"overhang_share": overhang_share(b, self.bound.up, self.bound.angle, exempt)}
+        out = exempt_elements(boundary, up, self.plate, tol, self.problem.interfaces)
+        down = -(element_normals(boundary) @ (up / np.linalg.norm(up)))
+        return out | realising_elements(boundary, self.problem.interfaces, tol, ~out & (down > 0))
+
+    def measure(self, shape, context, field, z) -> dict[str, Any]:
+        b = shape.boundary
+        return {"overhang_share": overhang_share(b, self.bound.up, self.bound.angle, self.exempt(b))}
 
     def violation(self, metrics: Mapping) -> Violation | None:
         v = metrics.get("overhang_share")

@@ -10,11 +10,12 @@ import math
 import numpy as np
 from matplotlib.collections import LineCollection
 
-from ..constraints.overhang import plate_height
+from ..constraints.feature_size import MinGapVerdict, MinThicknessVerdict
+from ..constraints.overhang import OverhangVerdict
 from ..extract.boundary import Boundary
 from ..extract.grid import Grid
 from ..extract.morphology import opening
-from ..extract.overhang import element_normals, exempt_elements
+from ..extract.overhang import element_normals
 from ..problems.problem import Problem
 
 __all__ = ["THIN_COLOR", "GAP_COLOR", "OVERHANG_COLOR", "has_marks", "violation_marks", "draw_violations_2d"]
@@ -37,14 +38,15 @@ def violation_marks(problem: Problem, inside: np.ndarray, grid: Grid, boundary: 
     t = problem.tolerances
     out: dict[str, np.ndarray] = {}
     if t.min_thickness is not None:
-        out["thin"] = inside & ~opening(inside, grid.spacing, t.min_thickness.size)
+        rims = MinThicknessVerdict(problem).rims(grid)
+        out["thin"] = inside & ~opening(inside, grid.spacing, t.min_thickness.size) & ~rims
     if t.min_gap is not None:
-        out["narrow"] = ~inside & ~opening(~inside, grid.spacing, t.min_gap.size)
+        rims = MinGapVerdict(problem).rims(grid)
+        out["narrow"] = ~inside & ~opening(~inside, grid.spacing, t.min_gap.size) & ~rims
     if t.overhang is not None and boundary.n_elements:
         up = np.asarray(t.overhang.up, dtype=np.float64)
-        exempt = exempt_elements(boundary, up, plate_height(problem, t.overhang), problem.interface_tolerance,
-                                 problem.interfaces)
-        down = -(element_normals(boundary) @ up)
+        exempt = OverhangVerdict(problem).exempt(boundary)
+        down = -(element_normals(boundary) @ (up / np.linalg.norm(up)))
         bad = (down > math.sin(math.radians(t.overhang.angle))) & ~exempt
         out["overhang"] = boundary.vertices[boundary.elements[bad]]
     return out
