@@ -68,6 +68,15 @@ def test_interface_cd1_concentric_circles():
     assert s["interface_cd1"] < 1e-4
 
 
+def test_the_worst_met_interface_is_reported_apart():
+    """A disk of radius 0.5 with interface circles of 0.5 and 0.4: the first is met, the second is
+    0.1 away everywhere. CD1 weighs them by length (5 : 4), sqrt(4/9) 0.1; the worst-met one is 0.1."""
+    P = problem(interfaces=(Circle(0.5), Circle(0.4)))
+    s = evaluate_shapes(as_field(Disk((0.0, 0.0), 0.5).sdf), None, P, 256).to_json()["shapes"][0]
+    assert s["interface_cd1_worst"] == pytest.approx(0.1, abs=1e-3)
+    assert s["interface_cd1"] == pytest.approx(math.sqrt(4 / 9) * 0.1, abs=2e-3)
+
+
 def test_interface_cd1_is_sub_cell_with_the_field():
     # A disk of radius 0.3 on a 16-cell grid (h = 0.125): the contour cuts the circle's arcs, so the
     # contour distance of samples on the circle is ~h^2 / (8 r) ~ 6e-3 on average; Newton

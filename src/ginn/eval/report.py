@@ -19,6 +19,7 @@ METRIC_LABELS = {
     "disconnected_volume_in_design_region": "↓ vol(DC(Ω ∩ E)) / vol(E)",
     "connected_interfaces_share": "↑ CI(Ω, I) / n_I",
     "interface_cd1": "↓ CD1(Ω, I)",
+    "interface_cd1_worst": "CD1 of the worst-met interface",
     "boundary_overlap": "↓ vol(Ω ∩ ∂E) / vol(∂E)",
     "volume_outside": "↓ vol(Ω \\ E) / vol(X \\ E)",
     "volume_outside_off_interfaces": "↓ vol(Ω \\ (E ∪ I_h)) / vol(X \\ E)",

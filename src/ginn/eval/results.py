@@ -28,6 +28,7 @@ METRIC_NAMES = (
     "disconnected_volume_in_design_region",
     "connected_interfaces_share",
     "interface_cd1",
+    "interface_cd1_worst",
     "boundary_overlap",
     "volume_outside",
     "volume_outside_off_interfaces",
@@ -60,6 +61,7 @@ class ShapeMetrics:
     disconnected_volume_in_design_region: float | None = None
     connected_interfaces_share: float | None = None
     interface_cd1: float | None = None
+    interface_cd1_worst: float | None = None
     boundary_overlap: float | None = None
     volume_outside: float | None = None
     volume_outside_off_interfaces: float | None = None
