@@ -8,8 +8,9 @@ the interface tolerance plus ``t / 2`` of an interface's rim are not counted
 (:meth:`ginn.problems.Problem.near_rims`): a rim is an edge the spec prescribes (a bolt hole's wall
 meets its seat at a right angle), the opening rounds it whatever the shape, and all it removes
 there lies within ``t / 2`` of the edge. A wall that is too thin along an interface is still
-counted away from the interface's rims. On the bracket (``t = 0.05``) the rims' neighbourhood held
-0.5 to 0.6 % of the volume the opening removed, of 1.2 to 1.4 % in all (``docs/results.md``).
+counted away from the interface's rims. On the bracket's shapes (``t = 0.05``) the opening removed
+1.17 to 1.42 % of the volume, 0.54 to 0.67 % of it within 0.03 of the rims, nearly all that it
+removed near the interfaces (``docs/results.md``, "The interface residual in units of length").
 
 Loss: the inner-normal segment test. A ball of diameter ``t`` that touches the boundary at ``p``
 from inside holds the segment from ``p`` to ``p - t n`` (``n`` the outward unit normal); where the
