@@ -199,7 +199,10 @@ def interface_cd1(
     (:func:`interface_distances`)."""
     if interface_points.shape[0] == 0:
         return None
-    d = interface_distances(boundary, interface_points, field, z, grid)
+    return _rms(interface_distances(boundary, interface_points, field, z, grid))
+
+
+def _rms(d: np.ndarray) -> float:
     return float(np.sqrt(np.mean(d * d)))
 
 
@@ -476,7 +479,7 @@ def shape_metrics(
             dist.append(interface_distances(shape.boundary, ctx.interface_points, field, z, ctx.grid))
         return dist[0]
 
-    timed("interface_cd1", lambda: float(np.sqrt(np.mean(distances() ** 2))) if len(ctx.interface_points) else None)
+    timed("interface_cd1", lambda: _rms(distances()) if len(ctx.interface_points) else None)
     timed("interface_cd1_worst",
           lambda: worst_component_cd1(distances(), ctx.interface_component) if len(ctx.interface_points) else None)
     timed(

@@ -417,10 +417,11 @@ class MeshInterface(Interface):
         """To the nearest open edge (an edge of one face only); ``inf`` for a closed mesh. Exact
         when that edge is among the 8 with the nearest midpoints."""
         if self._rim is None:
-            e = np.sort(np.asarray(self.mesh.faces, dtype=np.int64)[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
-            uniq, count = np.unique(e, axis=0, return_counts=True)
+            from trimesh.grouping import group_rows
+
+            e = self.mesh.edges_sorted
             v = np.asarray(self.mesh.vertices, dtype=np.float64)
-            seg = v[uniq[count == 1]]  # (m, 2, 3)
+            seg = v[e[group_rows(e, require_count=1)]]  # (m, 2, 3)
             self._rim = (seg, cKDTree(seg.mean(axis=1)) if len(seg) else None)
         seg, tree = self._rim
         if tree is None:
