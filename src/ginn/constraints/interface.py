@@ -54,12 +54,20 @@ def level_distance(f: Tensor, grad: Tensor, reach: float) -> Tensor:
     return f / slope.clamp_min(torch.finfo(f.dtype).tiny)
 
 
-def interface_residual(f: Tensor, grad: Tensor, reach: float) -> Tensor:
+def interface_residual(f: Tensor, grad: Tensor, reach: float, normals: Tensor | None = None,
+                       cos_min: float = 1.0) -> Tensor:
     """``f / min(|grad f|, 1)``, ``(n,)`` from ``f (n,)`` and ``grad (n, d)``: the first-order
     signed distance to ``f = 0`` where the field is flatter than a distance (at most ``reach`` in
-    size), ``f`` where it is steeper. The slope is a constant of the step (no gradient flows
-    through it), so lowering the residual moves the zero level rather than steepening the field."""
-    slope = torch.maximum(grad.detach().norm(dim=-1), f.detach().abs() / reach).clamp(max=1.0)
+    size), ``f`` where it is steeper.
+
+    ``normals (n, d)``: the prescribed outward normals (rows of zeros where none is prescribed).
+    A sample with a normal takes the distance only where ``grad f`` is within the normal's
+    tolerance of it (cosine at least ``cos_min``); elsewhere it keeps ``f``."""
+    slope = torch.maximum(grad.norm(dim=-1), f.detach().abs() / reach).clamp(max=1.0)
+    if normals is not None:
+        has = normals.norm(dim=-1) > 0.5
+        cos = (grad.detach() * normals).sum(-1) / grad.detach().norm(dim=-1).clamp_min(torch.finfo(f.dtype).tiny)
+        slope = torch.where(has & (cos < cos_min), torch.ones_like(slope), slope)
     return f / slope.clamp_min(torch.finfo(f.dtype).tiny)
 
 
@@ -103,6 +111,7 @@ class Interface(Constraint):
         self.corners = c if c.shape[0] > 0 else None
         self.distance = setting.cfg.losses.interface_distance
         self.reach = 2.0 * length_scale(setting.problem)  # the domain's longest side
+        self.cos_min = math.cos(math.radians(setting.problem.tolerances.normal_angle))
 
     @property
     def verdict(self) -> InterfaceVerdict:
@@ -111,7 +120,8 @@ class Interface(Constraint):
     def loss(self, batch: Batch) -> Tensor:
         fi = batch.f["interface"].reshape(-1)
         if self.distance:
-            fi = interface_residual(fi, batch.g["interface"].reshape(-1, batch.d), self.reach)
+            fi = interface_residual(fi, batch.g["interface"].reshape(-1, batch.d), self.reach,
+                                    batch.attrs["normals"].reshape(-1, batch.d), self.cos_min)
         weight = self.setting.cfg.sampling.interface_corner_weight
         if self.corners is None or weight <= 1:
             return self.fn(fi)
