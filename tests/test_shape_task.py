@@ -157,38 +157,43 @@ def test_without_a_floor_the_design_region_loss_is_the_papers():
     assert expected > 0 and out["design_region"].item() == pytest.approx(expected, rel=1e-6)
 
 
-def test_interface_residual_is_the_distance_where_the_field_is_flatter_than_one():
-    """``losses.interface_distance``: on the obstacle (interfaces x = +-0.9, |y| <= 0.4) the field
-    ``f = k (x - 0.9 - c)`` has its zero level at x = 0.9 + c, so each sample of the interface x = 0.9
-    is ``c`` away and each of x = -0.9 is ``1.8 + c`` away. For a slope ``k < 1`` the term is the mean
-    of those squared distances; for ``k > 1`` it is the paper's mean of ``f^2``, ``k^2`` times it."""
+def test_interface_residual_is_the_distance_where_the_field_is_flat_and_faces_the_normal():
+    """``losses.interface_distance`` on the obstacle (interfaces x = +-0.9, |y| <= 0.4, outward
+    normals -+x): the field ``f = k (x - 0.9 - c)`` has its zero level at x = 0.9 + c, so each sample
+    of x = 0.9 is ``c`` away and faces its normal +x, and each of x = -0.9 has ``f = -k (1.8 + c)``
+    and faces against its normal -x. For a slope ``k < 1`` the first enter as their distance ``c``,
+    the second as ``f``; for ``k > 1`` all enter as ``f``, the paper's term."""
     spec = load_spec("obstacle")
     c = 0.01
-    expected = 0.5 * (c * c + (1.8 + c) ** 2)
     for k in (0.25, 2.5):
         field = _FnField(lambda x, k=k: k * (x[:, 0] - 0.9 - c))
-        for distance, want in ((True, expected * max(k, 1.0) ** 2), (False, k * k * expected)):
+        paper = 0.5 * k * k * (c * c + (1.8 + c) ** 2)
+        ours = 0.5 * ((max(k, 1.0) * c) ** 2 + (k * (1.8 + c)) ** 2)
+        for distance, want in ((True, ours), (False, paper)):
             task = make_task(spec, spec.config("single", {"losses": {"interface_distance": distance}}))
             out = task.loss_terms(field, 0, {"interface"}, torch.Generator().manual_seed(2))
             assert out["interface"].item() == pytest.approx(want, rel=1e-3)
 
 
-def test_interface_residual_moves_the_zero_level_not_the_slope():
-    """No gradient reaches the field's slope through the residual: for ``f = a x + b`` at ``x = 1``
-    with ``|a| < 1``, ``d (f / |a|)^2 / d a`` is ``2 f x / a^2`` (the zero level's push) alone, and
-    the residual is capped by ``reach`` where the gradient vanishes."""
+def test_interface_residual_values_and_gradient():
+    """``f / min(|grad f|, 1)``: for ``f = a x + b`` at ``x = 1`` with ``|a| < 1`` the residual is
+    ``(a + b) / a`` and its square's derivatives are those of that quotient; capped by ``reach``
+    where the gradient vanishes; ``f`` where the field is steeper than a distance or faces more than
+    the tolerance away from a prescribed normal, the distance where it faces it or has none."""
     from ginn.constraints.interface import interface_residual
     a = torch.tensor(0.5, requires_grad=True)
     b = torch.tensor(0.1, requires_grad=True)
     f = (a * 1.0 + b).reshape(1)
-    r = interface_residual(f, a.reshape(1, 1).expand(1, 2) * torch.tensor([[1.0, 0.0]]), 2.0)
+    r = interface_residual(f, (a * torch.tensor([1.0, 0.0])).reshape(1, 2), 2.0)
     r.pow(2).sum().backward()
-    assert r.item() == pytest.approx(0.6 / 0.5)
-    assert a.grad.item() == pytest.approx(2 * 0.6 * 1.0 / 0.25)
-    assert b.grad.item() == pytest.approx(2 * 0.6 / 0.25)
-    f = torch.tensor([0.02, -0.03, 0.5])
-    g = torch.tensor([[0.5, 0.0], [0.0, 3.0], [0.0, 0.0]])
-    assert interface_residual(f, g, 2.0).tolist() == pytest.approx([0.04, -0.03, 2.0])
+    q = 0.6 / 0.5
+    assert r.item() == pytest.approx(q)
+    assert a.grad.item() == pytest.approx(2 * q * (1.0 / 0.5 - 0.6 / 0.25))
+    assert b.grad.item() == pytest.approx(2 * q / 0.5)
+    f = torch.tensor([0.02, -0.03, 0.5, 0.02, 0.02, 0.02])
+    g = torch.tensor([[0.5, 0.0], [0.0, 3.0], [0.0, 0.0], [0.5, 0.0], [0.5, 0.0], [0.5, 0.0]])
+    n = torch.tensor([[0.0, 0.0]] * 3 + [[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0]])
+    assert interface_residual(f, g, 2.0, n, 0.98).tolist() == pytest.approx([0.04, -0.03, 2.0, 0.04, 0.02, 0.02])
 
 
 def test_level_distance_is_bounded_where_the_field_is_flat():

@@ -43,8 +43,8 @@ class LossesConfig(Strict):
     interface_distance: bool = Field(
         False,
         description="the interface term as the mean of (f / min(|grad f|, 1))^2: each interface sample's first-order "
-        "distance to f = 0 (what CD1 measures) where the field is flatter than a distance, f where it is steeper, the "
-        "slope carrying no gradient; false is the paper's mean of f^2, which a field flatter than a distance meets "
+        "distance to f = 0 (what CD1 measures) where the field is flatter than a distance and faces the "
+        "prescribed normal within its tolerance, f elsewhere; false is the paper's mean of f^2, which a field flatter than a distance meets "
         "while its zero level stays short of the interface",
     )
     containment_power: Literal[1, 2] = Field(

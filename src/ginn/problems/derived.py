@@ -167,7 +167,7 @@ RULES: tuple[Rule, ...] = (
          "the weighted compliance relative to that of E all solid: no scale (only with a `physics` block)"),
     Rule("losses.interface_distance", "true", lambda g: True,
          "the interface residual in units of length where the field is flatter than a distance, f / min(|grad f|, 1) "
-         "with no gradient through the slope: the bracket's fields were 2.4 to 3.8 times flatter than a distance at "
+         "(f where the field faces away from a prescribed normal): the bracket's fields were 2.4 to 3.8 times flatter than a distance at "
          "its bolt seats, where the paper's f^2 passed shapes short of them; false is the paper's loss"),
     Rule("losses.containment_power", "1", lambda g: 1,
          "the exact penalty cut the obstacle's remaining volume outside E 3.5x at the same CD1; 2 is the paper's "
