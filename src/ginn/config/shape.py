@@ -44,8 +44,8 @@ class LossesConfig(Strict):
         False,
         description="the interface term as the mean of (f / min(|grad f|, 1))^2: each interface sample's first-order "
         "distance to f = 0 (what CD1 measures) where the field is flatter than a distance and faces the "
-        "prescribed normal within its tolerance, f elsewhere; false is the paper's mean of f^2, which a field flatter than a distance meets "
-        "while its zero level stays short of the interface",
+        "prescribed normal within its tolerance, f elsewhere; false is the paper's mean of f^2, which a field "
+        "flatter than a distance meets while its zero level stays short of the interface",
     )
     containment_power: Literal[1, 2] = Field(
         2,
