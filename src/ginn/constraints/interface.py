@@ -16,8 +16,8 @@ distance 2.4 to 3.8 times that, and CD1 ended at 0.83 to 1.52 times its bound on
 manufacturing bounds.
 
 Two limits keep the distance from doing harm where the paper's residual did well (pins-2d and
-wheel-2d with manufacturing bounds, seed 1; ``docs/results.md``, "The interface residual in units
-of length"):
+wheel-2d with manufacturing bounds, seed 1; ``docs/results.md``, "The interface residual's two
+limits"):
 
 * the slope is capped at 1: with ``f / |grad f|`` uncapped, the term was met by steepening the
   field as well as by moving its zero level, and it was (pins-2d: median ``|grad f|`` 1.0 to 4.2 on
