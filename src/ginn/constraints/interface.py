@@ -69,12 +69,14 @@ def interface_residual(f: Tensor, grad: Tensor, reach: float, normals: Tensor | 
     ``normals (n, d)``: the prescribed outward normals (rows of zeros where none is prescribed).
     A sample with a normal takes the distance only where ``grad f`` is within the normal's
     tolerance of it (cosine at least ``cos_min``); elsewhere it keeps ``f``."""
-    slope = torch.maximum(grad.norm(dim=-1), f.detach().abs() / reach).clamp(max=1.0)
+    tiny = torch.finfo(f.dtype).tiny
+    norm = grad.norm(dim=-1)
+    slope = torch.maximum(norm, f.detach().abs() / reach).clamp(max=1.0)
     if normals is not None:
         has = normals.norm(dim=-1) > 0.5
-        cos = (grad.detach() * normals).sum(-1) / grad.detach().norm(dim=-1).clamp_min(torch.finfo(f.dtype).tiny)
+        cos = (grad.detach() * normals).sum(-1) / norm.detach().clamp_min(tiny)
         slope = torch.where(has & (cos < cos_min), torch.ones_like(slope), slope)
-    return f / slope.clamp_min(torch.finfo(f.dtype).tiny)
+    return f / slope.clamp_min(tiny)
 
 
 class InterfaceVerdict(Verdict):
