@@ -10,6 +10,7 @@ import torch
 
 from _shapes import LineField
 from ginn.constraints import Overhang, OverhangVerdict
+from ginn.constraints.overhang import tail_means
 from ginn.errors import SpecError
 from ginn.extract.boundary import extract_boundary
 from ginn.extract.grid import Grid
@@ -86,11 +87,13 @@ def test_verdict_reads_the_share_and_the_plate_defaults_to_the_domain_bottom():
 @pytest.mark.parametrize("beta, expected", [(-60.0, math.sin(math.radians(60)) - math.sin(math.radians(45))),
                                             (-30.0, 0.0), (60.0, 0.0)])
 def test_loss_is_how_far_each_normal_points_down_beyond_the_limit(beta, expected):
+    """Every normal of the line points down alike: the mean over the down-facing samples and the
+    mean over their worst share are the same number, and the loss is their sum."""
     spec = _spec({"angle": 45, "up": [0, 1]})
     task = make_task(spec, spec.config(None, {"sampling": {"n_domain": 2048, "n_boundary": 64}}))
     assert [c for c in task.constraints if isinstance(c, Overhang)]
     terms = task.loss_terms(LineField(beta), 0, {"overhang", "eikonal"}, torch.Generator().manual_seed(0))
-    assert float(terms["overhang"].detach()) == pytest.approx(expected, abs=1e-5)
+    assert float(terms["overhang"].detach()) == pytest.approx(2 * expected, abs=1e-5)
     if expected > 0:
         terms["overhang"].backward()  # differentiable w.r.t. the parameters through the normals
 
@@ -108,11 +111,11 @@ class _Slab(torch.nn.Module):
 
 def test_loss_is_per_unit_of_down_facing_boundary():
     """Half of the slab's boundary faces down, straight: 1 - sin 45 per down-facing sample, as much
-    as a shape that faces only down."""
+    as a shape that faces only down (twice: the mean and the tail's mean)."""
     spec = _spec({"angle": 45, "up": [0, 1]})
     task = make_task(spec, spec.config(None, {"sampling": {"n_domain": 2048, "n_boundary": 128}}))
     terms = task.loss_terms(_Slab(), 0, {"overhang", "eikonal"}, torch.Generator().manual_seed(0))
-    assert float(terms["overhang"].detach()) == pytest.approx(1 - math.sin(math.radians(45)), abs=1e-5)
+    assert float(terms["overhang"].detach()) == pytest.approx(2 * (1 - math.sin(math.radians(45))), abs=1e-5)
 
 
 class _PlateWithHole(torch.nn.Module):
@@ -132,8 +135,8 @@ class _PlateWithHole(torch.nn.Module):
 def test_loss_leaves_the_boundary_that_an_interface_is_still_pulling_in(radius):
     """The hole's interface is the circle of radius 0.3. A hole of 0.33 lies 0.03 (six tolerances)
     beyond it, the nearest its boundary comes to the interface: its ceiling is the interface's still
-    to place, not overhang to turn, so the loss is the underside's alone (1 - sin 45 per sample), as
-    when the hole sits on the interface; the underside, 0.5 from the interface, stays counted."""
+    to place, not overhang to turn, so the loss is the underside's alone (1 - sin 45 per sample, in the
+    mean and in the tail's mean), as when the hole sits on the interface; the underside, 0.5 from the interface, stays counted."""
     spec = validate_spec({"name": "hole", "geometry": {
         "dim": 2, "domain": {"lo": [-1, -1], "hi": [1, 1]},
         "interfaces": [{"type": "circle", "center": [0, 0], "radius": 0.3}]},
@@ -141,7 +144,7 @@ def test_loss_leaves_the_boundary_that_an_interface_is_still_pulling_in(radius):
     task = make_task(spec, spec.config(None, {"sampling": {"n_domain": 4096, "n_boundary": 128}}))
     c = next(c for c in task.constraints if isinstance(c, Overhang))
     terms = task.loss_terms(_PlateWithHole(radius), 0, {"overhang", "eikonal"}, torch.Generator().manual_seed(0))
-    assert float(terms["overhang"].detach()) == pytest.approx(1 - math.sin(math.radians(45)), abs=1e-5)
+    assert float(terms["overhang"].detach()) == pytest.approx(2 * (1 - math.sin(math.radians(45))), abs=1e-5)
     x = torch.tensor([[0.0, radius], [0.0, -0.8]])
     assert c._realising(_PlateWithHole(radius), x, None).tolist() == [True, False]
 
@@ -164,3 +167,47 @@ def test_the_verdict_leaves_the_boundary_that_realises_an_interface_to_it():
     c = b.vertices[b.elements].mean(axis=1)
     assert np.array_equal(realising, np.abs(np.linalg.norm(c, axis=1) - r) < 0.01)  # the hole, not the plate
     assert overhang_share(b, up, 45.0, by_distance | realising) == pytest.approx(1.0, abs=1e-9)
+
+
+def test_tail_means_are_each_shapes_worst_share():
+    """Three shapes: the first's five facing samples 0.9, 0.1, 0.8, 0.2, 0.3 (a sixth, 1.0, not
+    facing), the second's two 0.4, 0.6; the third has none. At the share 0.4 the first keeps its
+    ceil(2.0) = 2 worst, (0.9 + 0.8) / 2, the second ceil(0.8) = 1, 0.6; at 0 each keeps its worst."""
+    down = torch.tensor([[0.9, 0.1, 1.0, 0.8, 0.2, 0.3],
+                         [0.4, 0.6, 0.7, 0.0, 0.0, 0.0],
+                         [0.5, 0.5, 0.5, 0.5, 0.5, 0.5]], requires_grad=True)
+    facing = torch.tensor([[True, True, False, True, True, True],
+                           [True, True, False, False, False, False],
+                           [False] * 6])
+    t = tail_means(down, facing, 0.4)
+    assert t.tolist() == pytest.approx([0.85, 0.6])
+    t.sum().backward()  # the gradient reaches the kept samples alone, 1 / k each
+    assert down.grad.flatten().tolist() == pytest.approx([0.5, 0, 0, 0.5, 0, 0] + [0, 1, 0, 0, 0, 0] + [0] * 6)
+    assert tail_means(down, facing, 0.0).tolist() == pytest.approx([0.9, 0.6])
+    assert tail_means(down, facing, 1.0).tolist() == pytest.approx([0.46, 0.5])
+
+
+def test_loss_acts_on_a_small_overhanging_share_at_full_strength():
+    """The slab's underside tilted by 60 degrees on a tenth of its width beyond x = 0.8: the mean over
+    the down-facing samples dilutes that tenth, the tail's mean at the share 0.01 sees it whole."""
+    spec = _spec({"angle": 45, "up": [0, 1]})
+    task = make_task(spec, spec.config(None, {"sampling": {"n_domain": 4096, "n_boundary": 256}}))
+    terms = task.loss_terms(_Wedge(), 0, {"overhang", "eikonal"}, torch.Generator().manual_seed(0))
+    beyond = math.sin(math.radians(60)) - math.sin(math.radians(45))
+    # the steep face is 0.35 / (1.85 + 0.35) = 16 % of the boundary: the mean is 0.16 * beyond, the tail's beyond
+    assert float(terms["overhang"].detach()) == pytest.approx((1 + 0.346 / (1.848 + 0.346)) * beyond, rel=0.02)
+
+
+class _Wedge(torch.nn.Module):
+    """The wedge above (0.7, -0.6) between a face whose normal points 30 degrees below the
+    horizontal (1.85 long to the domain's top) and one at 60 degrees (0.35 long to its right side)."""
+
+    def __init__(self):
+        super().__init__()
+        self.p = torch.nn.Parameter(torch.zeros(()))
+        c30, s30 = math.cos(math.radians(30)), math.sin(math.radians(30))
+        self.register_buffer("n", torch.tensor([[-c30, -s30], [s30, -c30]]))  # (2, 2) the outward normals
+
+    def forward(self, x, z=None):
+        h = (x - torch.tensor([0.7, -0.6])) @ self.n.T  # (n, 2); at a tie the gradient is one face's
+        return torch.where(h[:, 0] >= h[:, 1], h[:, 0], h[:, 1]) + 0 * self.p
