@@ -4,6 +4,7 @@ needed), and moving the slider changes the picture."""
 
 import base64
 import json
+import math
 import re
 import shutil
 import subprocess
@@ -170,6 +171,31 @@ def test_a_problem_with_manufacturing_tolerances_marks_them_in_every_frame(tmp_p
     plain = write_explorer(field, None, validate_spec({**spec, "tolerances": {}}).build(), tmp_path / "p.html",
                            resolution=128).read_text()
     assert all(t.get("name") != "thin, narrow or overhanging" for t in _figure(plain)[0])
+
+
+def test_a_3d_shape_colours_its_overhanging_faces(tmp_path):
+    """A ball of radius 0.5 printed along +z at 45 degrees: the faces coded 3 (overhanging) are the
+    cap below the height -0.5 sin 45, within a cell, and the others are 0."""
+    from ginn.fields import as_field
+    from ginn.problems import validate_spec
+    from ginn.viz.explorer import write_explorer
+
+    spec = {"name": "ball", "geometry": {"dim": 3, "domain": {"lo": [-1, -1, -1], "hi": [1, 1, 1]},
+            "interfaces": [{"type": "annulus", "center": [0.9, 0.9, 0.9], "normal": [0, 0, 1], "r_inner": 0.01,
+                            "r_outer": 0.02}]},
+            "tolerances": {"overhang": {"angle": 45, "up": [0, 0, 1]}}}
+    field = as_field(lambda x: x.norm(dim=-1) - 0.5)
+    data, _ = _figure(write_explorer(field, None, validate_spec(spec).build(), tmp_path / "b.html", resolution=48).read_text())
+    mesh = data[0]
+
+    def arr(v):
+        return np.frombuffer(base64.b64decode(v["bdata"]), dtype=v["dtype"]) if isinstance(v, dict) else np.asarray(v)
+
+    code = arr(mesh["intensity"])
+    z = arr(mesh["z"])[np.stack([arr(mesh[k]) for k in "ijk"], axis=1)].mean(axis=1)  # the faces' centroids' heights
+    assert mesh["intensitymode"] == "cell" and set(np.unique(code)) == {0, 3}
+    edge = -0.5 * math.sin(math.radians(45))
+    assert z[code == 3].max() < edge + 2 / 48 and z[code == 0].min() > edge - 2 / 48
 
 
 def test_a_structural_problem_shows_the_strain_energy_and_the_compliance(tmp_path):

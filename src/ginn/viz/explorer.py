@@ -50,7 +50,7 @@ from ..extract.boundary import extract_boundary
 from ..extract.grid import make_grid
 from ..fields import Field
 from ..problems.problem import Problem
-from .manufacturing import THIN_COLOR, has_marks, violation_marks
+from .manufacturing import MARK_COLORS, THIN_COLOR, face_marks, has_marks, violation_marks
 
 __all__ = ["ExplorerLatents", "explorer_latents", "write_explorer", "strain_energy", "write_page", "add_sliders", "note",
            "EXPLORER_RESOLUTION"]
@@ -223,9 +223,10 @@ def _problem_traces(problem: Problem, resolution: int) -> list:
     return traces
 
 
-def _shape_trace(shape, grid, d: int, filled: bool = True):
+def _shape_trace(shape, grid, d: int, filled: bool = True, marks: np.ndarray | None = None):
     """The shape: in 2D its filled outline (``filled`` False: the outline alone, over a map beneath
-    it), in 3D its mesh."""
+    it), in 3D its mesh, with ``marks (m,)`` (:func:`ginn.viz.manufacturing.face_marks`) the faces
+    that break a manufacturing tolerance in their colours."""
     import plotly.graph_objects as go
 
     if d == 2:
@@ -239,9 +240,19 @@ def _shape_trace(shape, grid, d: int, filled: bool = True):
     V, F = b.vertices.astype(np.float32), b.elements.astype(np.int32)
     if len(F) == 0:
         V, F = np.zeros((3, 3), np.float32), np.zeros((0, 3), np.int32)
-    return go.Mesh3d(x=V[:, 0], y=V[:, 1], z=V[:, 2], i=F[:, 0], j=F[:, 1], k=F[:, 2], color=SHAPE_COLOR,
-                     flatshading=False, lighting={"ambient": 0.45, "diffuse": 0.7, "specular": 0.1}, name="shape",
-                     hoverinfo="skip")
+        marks = None
+    look = {"flatshading": False, "lighting": {"ambient": 0.45, "diffuse": 0.7, "specular": 0.1}, "name": "shape",
+            "hoverinfo": "skip"}
+    if marks is None:
+        return go.Mesh3d(x=V[:, 0], y=V[:, 1], z=V[:, 2], i=F[:, 0], j=F[:, 1], k=F[:, 2], color=SHAPE_COLOR, **look)
+    # a code per face, drawn through a stepped colour scale (a byte per face in the page, where a
+    # colour string per face would take twenty)
+    colors = [SHAPE_COLOR] + [MARK_COLORS[k] for k in sorted(MARK_COLORS)]
+    n = len(colors)
+    scale = [[s, c] for i, c in enumerate(colors) for s in (i / n, (i + 1) / n)]
+    return go.Mesh3d(x=V[:, 0], y=V[:, 1], z=V[:, 2], i=F[:, 0], j=F[:, 1], k=F[:, 2],
+                     intensity=marks.astype(np.uint8), intensitymode="cell", colorscale=scale, cmin=-0.5,
+                     cmax=n - 0.5, showscale=False, **look)
 
 
 def strain_energy(report: ComplianceReport, field: Field, z: Tensor | None) -> tuple[np.ndarray, float]:
@@ -353,6 +364,7 @@ def write_explorer(field: Field, Z: Tensor | None, problem: Problem, path: str |
     dt = next(field.parameters()).dtype if isinstance(field, torch.nn.Module) else torch.float32
     frames, names, shapes = [], [], []
     marked = d == 2 and has_marks(problem)
+    marked3 = d == 3 and has_marks(problem)
     report = ComplianceReport(problem) if d == 2 and problem.physics is not None else None
     energies: list[np.ndarray] = []
     for idx, z in enumerate(lat.codes):
@@ -371,7 +383,8 @@ def write_explorer(field: Field, Z: Tensor | None, problem: Problem, path: str |
             energies.append(energy)
             verdict += f"<br>compliance {c:.4g} (solved on the fine element grid)"
         text = f"<b>latent {lat.labels[idx]}</b><br>{verdict}<br><i>{how}</i>"
-        data = [_shape_trace(shape, ctx.grid, d, filled=report is None)]
+        faces = face_marks(problem, shape.values <= 0, ctx.grid, shape.boundary) if marked3 else None
+        data = [_shape_trace(shape, ctx.grid, d, filled=report is None, marks=faces)]
         data += [_marks_trace(problem, shape, ctx.grid)] if marked else []
         frames.append(go.Frame(name=name, data=data, layout={"annotations": [note(text)]}))
         names.append(name)

@@ -37,7 +37,7 @@ from ..geometry.base import Box, Region
 from ..problems.problem import Problem
 from .curves import plot_loss_curves
 from .figure import new_figure, save_figure
-from .manufacturing import draw_violations_2d, has_marks
+from .manufacturing import MARK_COLORS, draw_violations_2d, face_marks, has_marks
 
 __all__ = [
     "new_figure",
@@ -129,7 +129,9 @@ def save_shape_figure(shape: Boundary | Sequence[np.ndarray], problem: Problem, 
 # --- 3D -----------------------------------------------------------------------------------------------
 
 
-def _shaded(boundary: Boundary, color, light=(0.3, -0.5, 0.8)):
+def _shaded(boundary: Boundary, color, light=(0.3, -0.5, 0.8), marks: np.ndarray | None = None):
+    """``(m, 3)`` the faces' RGB in ``color`` under a Lambert light; ``marks (m,)``: the faces that
+    break a manufacturing tolerance, in their colours (:func:`ginn.viz.manufacturing.face_marks`)."""
     from matplotlib.colors import to_rgb
 
     V, F = boundary.vertices, boundary.elements
@@ -138,7 +140,11 @@ def _shaded(boundary: Boundary, color, light=(0.3, -0.5, 0.8)):
     ll = np.asarray(light, float)
     ll /= np.linalg.norm(ll)
     shade = 0.35 + 0.65 * np.abs(n @ ll)
-    return np.clip(np.asarray(to_rgb(color))[None, :] * shade[:, None], 0, 1)
+    base = np.broadcast_to(np.asarray(to_rgb(color)), (len(F), 3))
+    if marks is not None:
+        palette = np.array([to_rgb(color)] + [to_rgb(MARK_COLORS[k]) for k in sorted(MARK_COLORS)])
+        base = palette[marks]
+    return np.clip(base * shade[:, None], 0, 1)
 
 
 def render_mesh(
@@ -149,14 +155,17 @@ def render_mesh(
     view: tuple[float, float] = DEFAULT_VIEWS[0],
     envelope: Boundary | None = None,
     interface_points: np.ndarray | None = None,
+    marks: np.ndarray | None = None,
 ) -> None:
-    """Draw a 3D boundary with flat Lambert shading on a 3D axis (optionally a faint envelope and
-    interface points)."""
+    """Draw a 3D boundary with flat Lambert shading on a 3D axis (optionally a faint envelope,
+    interface points and the faces that break a manufacturing tolerance in their colours, ``marks
+    (m,)``, :func:`ginn.viz.manufacturing.face_marks`)."""
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
     if boundary.n_elements:
         tri = boundary.vertices[boundary.elements]
-        ax.add_collection3d(Poly3DCollection(tri, facecolors=_shaded(boundary, color), edgecolors="none", linewidths=0))
+        ax.add_collection3d(Poly3DCollection(tri, facecolors=_shaded(boundary, color, marks=marks), edgecolors="none",
+                                             linewidths=0))
     if envelope is not None and envelope.n_elements:
         ax.add_collection3d(
             Poly3DCollection(envelope.vertices[envelope.elements], facecolors=(0.5, 0.5, 0.5, 0.04), edgecolors="none")
@@ -197,15 +206,17 @@ def plot_views(
     interfaces: bool = True,
     envelope_resolution: int = 32,
     title: str = "",
+    marks: np.ndarray | None = None,
 ) -> Path:
     """Several views of one 3D shape in one PNG (the design region translucent, the interface
-    samples as dots), titled ``title`` (e.g. its feasibility verdict)."""
+    samples as dots, ``marks``: see :func:`render_mesh`), titled ``title`` (e.g. its feasibility
+    verdict)."""
     env = _envelope(problem, envelope_resolution) if envelope else None
     ip = _interface_points(problem) if interfaces else None
     fig = new_figure(4 * len(views), 4)
     for i, v in enumerate(views):
         ax = fig.add_subplot(1, len(views), i + 1, projection="3d")
-        render_mesh(ax, boundary, problem.domain, color, v, env, ip)
+        render_mesh(ax, boundary, problem.domain, color, v, env, ip, marks)
     if title:
         fig.suptitle(title, fontsize=10)
     return save_figure(fig, path)
@@ -244,7 +255,16 @@ def _panel_grid(n: int, ncols: int | None = None) -> tuple[int, int]:
     return int(math.ceil(n / ncols)), ncols
 
 
-def _draw_panel(fig, rows, cols, i, boundary, problem, color, view=DEFAULT_VIEWS[0], alpha=1.0, title=None):
+def _mesh_marks(field: Field, z: Tensor | None, problem: Problem, boundary: Boundary, resolution: int) -> np.ndarray | None:
+    """The manufacturing marks of a 3D shape's faces on the picture's grid
+    (:func:`ginn.viz.manufacturing.face_marks`; None where the problem states no such tolerance)."""
+    if problem.dim != 3 or not has_marks(problem):
+        return None
+    g = make_grid(problem.domain, resolution)
+    return face_marks(problem, sample_field(field, g, z) <= 0, g, boundary)
+
+
+def _draw_panel(fig, rows, cols, i, boundary, problem, color, view=DEFAULT_VIEWS[0], alpha=1.0, title=None, marks=None):
     if problem.dim == 2:
         ax = fig.add_subplot(rows, cols, i + 1)
         draw_problem_2d(ax, problem)
@@ -253,7 +273,7 @@ def _draw_panel(fig, rows, cols, i, boundary, problem, color, view=DEFAULT_VIEWS
         ax.set_yticks([])
     else:
         ax = fig.add_subplot(rows, cols, i + 1, projection="3d")
-        render_mesh(ax, boundary, problem.domain, color, view)
+        render_mesh(ax, boundary, problem.domain, color, view, marks=marks)
     if title:
         ax.set_title(title, fontsize=8)
     return ax
@@ -301,8 +321,8 @@ def plot_shapes(
     *,
     cache: dict | None = None,
 ) -> Path:
-    """One panel per shape (2D: on the problem, with what breaks its manufacturing tolerances
-    marked, :mod:`ginn.viz.manufacturing`; 3D: one rendered view)."""
+    """One panel per shape (2D: on the problem, 3D: one rendered view), with what breaks its
+    manufacturing tolerances marked on the picture's grid (:mod:`ginn.viz.manufacturing`)."""
     res = resolution or default_resolution("figure", problem.dim)
     codes = _codes(Z)
     bs = _boundaries(field, codes, problem.domain, res, cache)
@@ -313,7 +333,8 @@ def plot_shapes(
     g = make_grid(problem.domain, res) if marks else None
     for i, b in enumerate(bs):
         title = None if codes[i] is None else "z = " + ", ".join(f"{v:.3g}" for v in codes[i].reshape(-1).tolist())
-        ax = _draw_panel(fig, rows, cols, i, b, problem, SHAPE_COLOR, title=title)
+        ax = _draw_panel(fig, rows, cols, i, b, problem, SHAPE_COLOR, title=title,
+                         marks=_mesh_marks(field, codes[i], problem, b, res))
         if marks:
             draw_violations_2d(ax, problem, sample_field(field, g, codes[i]) <= 0, g, b)
     return save_figure(fig, path)
@@ -410,5 +431,6 @@ def plot_run(
         codes = _codes(Z)[:max_view_shapes]
         for i, b in enumerate(_boundaries(field, codes, problem.domain, res, cache)):
             title = view_titles[i] if view_titles is not None and i < len(view_titles) else ""
-            paths.append(plot_views(b, problem, out_dir / f"shape_{i:03d}_views.png", views, title=title))
+            paths.append(plot_views(b, problem, out_dir / f"shape_{i:03d}_views.png", views, title=title,
+                                    marks=_mesh_marks(field, codes[i], problem, b, res)))
     return paths
