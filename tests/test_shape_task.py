@@ -202,3 +202,37 @@ def test_level_distance_is_bounded_where_the_field_is_flat():
     f = torch.tensor([0.02, -0.03, 0.5, -0.5])
     g = torch.tensor([[0.5, 0.0], [0.0, 3.0], [0.0, 0.0], [1e-9, 0.0]])
     assert level_distance(f, g, 2.0).tolist() == pytest.approx([0.04, -0.01, 2.0, -2.0])
+
+
+def test_the_wall_of_the_domain_outside_the_design_region_is_penalised_where_the_shape_runs_into_it():
+    """E = [-0.5, 0.98] x [-1, 1] in X = [-1, 1]^2 leaves a sliver 0.02 wide along x = 1, thinner
+    than the uniform samples of X \\ E are apart (sqrt(1.04 / 512) = 0.045). The slab -0.4 <= x <=
+    1.05 runs through it into the wall: no zero crossing there for the surface samples, and few
+    uniform samples. At the wall points in the sliver (the lattice of 128 cells on X's edges, at the
+    cells' centres, within 0.045 outside E: 128 on x = 1, and x = 0.992 on each of y = +-1)
+    f - depth = (x - 1.05) - (x - 0.98) = -0.07, and each joins the design-region term's mean."""
+    from ginn.problems import validate_spec
+
+    spec = validate_spec({"name": "sliver", "geometry": {
+        "dim": 2, "domain": {"lo": [-1, -1], "hi": [1, 1]},
+        "design_region": {"type": "box", "lo": [-0.5, -1], "hi": [0.98, 1]},
+        "interfaces": [{"type": "segment", "a": [0.0, 0.0], "b": [0.0, 0.1], "normal": [1, 0]}]}})
+    task = make_task(spec, spec.config(None, {"latents": {"n_shapes": 1}}))
+    c = next(c for c in task.constraints if c.name == "design_region")
+    assert c.wall.shape[0] == 128 + 2 + 2 * 3  # and 3 on each of y = +-1 beside x = -0.5, where f > depth
+    slab = _FnField(lambda x: torch.maximum(-0.4 - x[:, 0], x[:, 0] - 1.05))
+    with_wall = task.loss_terms(slab, 0, {"design_region"}, torch.Generator().manual_seed(1))["design_region"].item()
+    c.wall = c.wall[:0]
+    without = task.loss_terms(slab, 0, {"design_region"}, torch.Generator().manual_seed(1))["design_region"].item()
+    n = task.draw_batch(1, {"design_region"}, torch.Generator().manual_seed(1)).x["outside"].shape[1]
+    k = 128 + 2
+    assert with_wall == pytest.approx((without * n + 0.07 * k) / (n + k), rel=1e-4)
+    # a shape away from the wall leaves the term as it was, to the bit (such problems train as
+    # before), here a disk across E's left side, outside E where the uniform samples see it
+    c.wall = next(c for c in make_task(spec, spec.config(None, {"latents": {"n_shapes": 1}})).constraints
+                  if c.name == "design_region").wall
+    disk = _FnField(lambda x: (x - torch.tensor([-0.6, 0.0])).norm(dim=-1) - 0.2)
+    a = task.loss_terms(disk, 0, {"design_region"}, torch.Generator().manual_seed(1))["design_region"]
+    c.wall = c.wall[:0]
+    b = task.loss_terms(disk, 0, {"design_region"}, torch.Generator().manual_seed(1))["design_region"]
+    assert a.item() > 0 and torch.equal(a, b)

@@ -177,7 +177,8 @@ RULES: tuple[Rule, ...] = (
          "the floor, the samples of the shapes' surfaces outside E join the uniform samples of X \\ E, each "
          "penalised by its depth: a thin overhang catches few uniform samples, so without them its push scales with "
          "its volume, with them with its area (the bracket, seeds 0 and 1: 4/4 feasible with them, 2/4 and 0/4 "
-         "without)"),
+         "without); so do the points of the domain's faces in a sliver of X \\ E where the field is below it "
+         "(`ginn.constraints.containment`)"),
     Rule("sampling.n_domain", "256 (2D), 2048 (3D)", _by_dim(256, 2048),
          "uniform samples per shape: the eikonal term and the pool of the surface samples (`docs/results.md`, "
          "\"Step cost\")"),
