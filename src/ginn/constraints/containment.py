@@ -161,9 +161,12 @@ class DesignRegion(_Containment):
             band = (outside * problem.domain.volume() / max(setting.cfg.sampling.n_outside, 1)) ** (1.0 / d)
             wall = wall_points(problem, spacing, band)
             n = setting.cfg.sampling.n_outside
-            if wall.shape[0] > n:  # as many as the uniform samples of X \\ E, evenly spread
+            if wall.shape[0] > n:  # as many as the uniform samples of X \ E, evenly spread
                 wall = wall[torch.linspace(0, wall.shape[0] - 1, n).round().long()]
             self.wall = wall.to(setting.device, setting.dtype)
+        # the floor at the wall points, fixed as they are: (n_wall,)
+        self.wall_floor = containment_floor(self.wall[None], setting.problem.design_region, 1.0, self.slope) \
+            if self.wall.shape[0] else self.wall.new_zeros(0)
 
     def loss(self, batch: Batch) -> Tensor | None:
         if "outside" not in batch.f:
@@ -200,7 +203,7 @@ class DesignRegion(_Containment):
         S = 1 if batch.Z is None else batch.Z.shape[0]
         x = w.repeat(S, 1)
         z = None if batch.Z is None else batch.Z.repeat_interleave(w.shape[0], dim=0)
-        floor = containment_floor(x[None], self.setting.problem.design_region, 1.0, self.slope)
+        floor = self.wall_floor.repeat(S)
         with torch.no_grad():
             bad = (batch.model(x, z).reshape(-1) - floor) < 0
         if not bool(bad.any()):
