@@ -151,18 +151,6 @@ def test_checks_raise_only_what_both_candidates_violate():
     assert raised == {"volume_outside": 2.0}
 
 
-def test_a_bounded_objective_falls_while_met_and_others_never_do():
-    terms = {"diversity": LossTerm(weight=1.0), "interface": LossTerm(weight=1.0)}
-    m = CheckedMultipliers(terms, {"diversity": ("diversity",), "interface": ("interface",)}, bounded=("diversity",))
-    m.on_check({"diversity": 0.5, "interface": 0.5}, 9)  # the first check only records
-    assert m.on_check({"diversity": 0.5, "interface": 0.5}, 8) == {"diversity": 0.5}
-    assert m.on_check({"diversity": 0.9, "interface": 0.5}, 7) == {"diversity": pytest.approx(0.81)}
-    assert m.multipliers() == {"diversity": pytest.approx(0.405), "interface": 1.0}
-    # violated and off track: raised like any constraint, from where it fell
-    assert m.on_check({"diversity": 1.5, "interface": 0.5}, 6) == {"diversity": 2.0}
-    assert m.multipliers()["diversity"] == pytest.approx(0.81)
-
-
 def test_a_hard_bound_is_raised_by_the_full_factor_until_met():
     """min (x - 0.5)^2 + lambda relu(x - 0.48) has x = max(0.48, 0.5 - lambda / 2): the exact
     penalty meets the bound exactly once lambda >= 0.04. From lambda = 0.001 the violation's ratio

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import abc
 import enum
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, ClassVar
 
@@ -137,10 +138,11 @@ class Constraint(abc.ABC):
         adaptive`` holds the term at or below it); None: an objective."""
         return None
 
-    def bounds_objective(self) -> bool:
-        """Whether the verdict bounds an objective from below (a least diversity): its
-        multiplier also falls while the bound is met (``balancing.method: feasibility``)."""
-        return False
+    def checked(self, ratios: Mapping[str, float | None]) -> None:
+        """A feasibility check's verdict on the reported shapes: each constraint's worst value over
+        its bound (:attr:`ginn.eval.results.FeasibilitySummary.ratios`). A term whose loss
+        estimates a verdict's metric can calibrate itself on the verdict's measurement; most
+        ignore it."""
 
     def state_dict(self) -> dict[str, Any]:
         """What a checkpoint keeps (tensors and plain data); empty for a stateless term."""

@@ -10,9 +10,10 @@ from .constraints import (
     ObstacleLoss,
     StrainLoss,
 )
-from .diversity import aggregate, aggregate_min, aggregate_sum, cross_values, distance_matrix, diversity
+from .diversity import aggregate, aggregate_min, aggregate_sum, boundary_distances, cross_values, distance_matrix, diversity, mean_diversity
 
 __all__ = [
     "DesignRegionLoss", "ObstacleLoss", "InterfaceLoss", "NormalLoss", "EikonalLoss", "MeanCurvatureLoss", "StrainLoss",
     "diversity", "aggregate", "aggregate_min", "aggregate_sum", "cross_values", "distance_matrix",
+    "boundary_distances", "mean_diversity",
 ]

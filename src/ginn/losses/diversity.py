@@ -224,3 +224,68 @@ def diversity_nearest(
     a_in, a_out = A[inverse[:S]], A[inverse[S:]]  # A[i, n(i)], A[n(i), i]
     nearest = (a_in + a_out + eps * eps).sqrt() if eps > 0 else (a_in + a_out).clamp_min(_TINY).sqrt()
     return nearest.clamp_min(_TINY).pow(p).sum().pow(1.0 / p)
+
+
+def mean_diversity(D: Tensor) -> Tensor:
+    """Equation 6, ``[mean_i ((1/(S-1)) sum_{j != i} D_ij)^(1/2)]^2``, of a distance matrix ``(S, S)``
+    (diagonal ignored) -> scalar: the aggregation ``ginn eval`` reports as ``diversity_mean``."""
+    S = D.shape[0]
+    if S < 2:
+        return D.new_zeros(())
+    eye = torch.eye(S, dtype=torch.bool, device=D.device)
+    rows = D.masked_fill(eye, 0.0).sum(dim=1) / (S - 1)
+    return rows.clamp_min(_TINY).sqrt().mean().square()
+
+
+def boundary_distances(x: Tensor, mask: Tensor | None, f: Tensor, grad: Tensor, chunk: int = 1 << 24) -> Tensor:
+    """The distance from each boundary sample of each shape to every other shape's boundary,
+    ``V (S, S, m)`` with ``V[i, j, k]`` the distance from sample ``k`` of shape ``i`` to shape ``j``.
+
+    Arguments:
+        x: boundary samples ``(S, m, d)`` (detached; ``f = 0`` there up to the projection's tolerance).
+        mask: valid samples ``(S, m)`` or None.
+        f: the field of each shape at its own samples ``(S, m)``, with its graph.
+        grad: its gradient there ``(S, m, d)`` (detached).
+
+    Value: with ``y`` the nearest valid sample of the other shape, ``n`` its unit normal and ``h``
+    the distance from ``y`` to the nearest other sample of its own shape (the spacing of the
+    samples there), ``max(|(x - y) . n|, |x - y| - h)``: the distance to the boundary's tangent at
+    ``y`` where ``x`` faces it, so that a shape's distance to a copy of itself sampled elsewhere is
+    its curvature's sagitta rather than the samples' spacing, and never below the distance to
+    ``y`` less ``h`` (where the boundary ends or bends away). Gradient: the boundary sensitivity;
+    the field of shape ``j`` moved by ``df`` at ``y`` moves its boundary by ``-df / |grad f|``
+    along ``n`` and the distance by ``(df / |grad f|) n . u``, ``u`` the distance's gradient in
+    ``x``; the sample's own shape moves ``x`` likewise, with the opposite sign. The field terms
+    enter as ``f - f.detach()``, so the value is the distance above exactly.
+    """
+    S, m, d = x.shape
+    valid = torch.ones(S, m, dtype=torch.bool, device=x.device) if mask is None else mask.bool()
+    gn = grad.norm(dim=-1).clamp_min(_TINY)  # (S, m)
+    n = grad / gn[..., None]
+    moved = (f - f.detach()) / gn  # (S, m): the boundary's displacement against its normal, zero in value
+    Y = x.reshape(S * m, d)
+    far = torch.where(valid.reshape(1, S * m), 0.0, float("inf")).to(x.dtype)
+    rows = max(1, chunk // max(S * S * m, 1))
+    near = []
+    with torch.no_grad():
+        own = torch.cdist(x, x, compute_mode="donot_use_mm_for_euclid_dist")  # (S, m, m)
+        own = own + torch.where(valid[:, None, :], 0.0, float("inf")).to(x.dtype)
+        own.diagonal(dim1=1, dim2=2).fill_(float("inf"))
+        h = own.min(dim=-1).values  # (S, m): each sample's spacing
+        h = torch.where(torch.isfinite(h), h, torch.zeros_like(h))
+        for lo in range(0, S, rows):
+            dist = torch.cdist(x[lo: lo + rows], Y[None].expand(min(rows, S - lo), S * m, d),
+                               compute_mode="donot_use_mm_for_euclid_dist") + far  # (r, m, S m)
+            near.append(dist.reshape(-1, m, S, m).min(dim=-1))
+        k = torch.cat([v.indices for v in near]).permute(0, 2, 1)  # (S_i, S_j, m): the nearest sample of shape j
+        j = torch.arange(S, device=x.device)[:, None].expand(S, m)[None].expand(S, S, m)
+        r = x[:, None] - x[j, k]  # (S, S, m, d): from y to x
+        ny = n[j, k]
+        along = (r * ny).sum(-1)
+        dist = r.norm(dim=-1)
+        tangent = along.abs() >= dist - h[j, k]
+        u = torch.where(tangent[..., None], along.sign()[..., None] * ny, r / dist.clamp_min(_TINY)[..., None])
+        d0 = torch.where(tangent, along.abs(), dist - h[j, k])
+    mine = moved[:, None] * (n[:, None] * u).sum(-1)  # shape i's sample moves
+    other = moved[j, k] * (ny * u).sum(-1)  # shape j's boundary moves at y
+    return d0 + other - mine

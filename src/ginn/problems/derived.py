@@ -60,18 +60,20 @@ class Geometry:
 
     Attributes:
         s: the length scale (:func:`length_scale`); d: the dimension; a: the smallest interface
-        (:func:`smallest_feature`); h: the interface tolerance in the problem's units.
+        (:func:`smallest_feature`); h: the interface tolerance in the problem's units;
+        least_diversity: whether the tolerances bound the set's diversity from below.
     """
 
     s: float
     d: int
     a: float
     h: float
+    least_diversity: bool = False
 
     @classmethod
     def of(cls, problem: Problem) -> Geometry:
         return cls(length_scale(problem), problem.dim, smallest_feature(problem),
-                   problem.tolerances.interface * problem.unit_scale)
+                   problem.tolerances.interface * problem.unit_scale, problem.tolerances.diversity is not None)
 
     def given(self, names: str) -> str:
         """``s = 1, h = 0.005``: the quantities ``names`` (letters of ``sah``) of this problem."""
@@ -137,7 +139,10 @@ RULES: tuple[Rule, ...] = (
     Rule("losses.connectedness.weight", "8 / s", lambda g: 8.0 / g.s, "the mean penalised field value scales as `s`", "s"),
     Rule("losses.topology.weight", "8 / s", lambda g: 8.0 / g.s,
          "hinges on field values, as connectedness (only with `topology:` targets)", "s"),
-    Rule("losses.diversity.weight", "0.015 / s", lambda g: 0.015 / g.s, "the aggregated shape distance scales as `s`", "s"),
+    Rule("losses.diversity.weight", "0.015 / s; 10 with `tolerances.diversity`",
+         lambda g: 10.0 if g.least_diversity else 0.015 / g.s,
+         "the aggregated shape distance scales as `s`; under a least diversity the term is the shortfall relative "
+         "to the bound, which has no scale, as the volume fraction's", "s"),
     Rule("losses.volume.weight", "10", lambda g: 10.0,
          "a volume fraction has no scale; the obstacle with 4 shapes and `volume_fraction` 0.35 (seed 0) ended with "
          "its worst fraction 26 % over the bound at weight 1 and every fraction within it at 10 "

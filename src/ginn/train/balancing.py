@@ -80,11 +80,6 @@ A term that enforces several constraints (the interface: its own, and the refere
 Plateau's problem, whose area is lost where the surface misses the polygon) has the largest of
 their factors.
 
-A *bounded objective* (the diversity, where the spec states ``tolerances.diversity``: the set must
-be at least that diverse, and need not be more) is a constraint of the same kind whose multiplier
-also falls while the bound is met: ``lambda <- lambda * max(q^2, 1/2)`` for ``q < 1``, the mirror
-of the rise, with no floor, so that a set more diverse than asked stops being pushed apart and the
-other terms get the room.
 """
 
 from __future__ import annotations
@@ -275,8 +270,6 @@ class CheckedMultipliers(WeightedSum):
         groups: ``{constraint: (term, ...)}``, the loss terms that enforce each constraint of the
             verdict (:attr:`Balance.groups`); terms in no group keep their
             weights.
-        bounded: the constraints that bound an objective (:attr:`Balance.bounded`):
-            their multipliers also fall while met.
         hard: the constraints whose bound has no tolerance (:attr:`Balance.hard`): raised by
             ``GROWTH`` whenever violated and off track.
 
@@ -288,10 +281,9 @@ class CheckedMultipliers(WeightedSum):
     AVERAGE = AdaptiveMultipliers.AVERAGE
 
     def __init__(self, terms: dict[str, LossTerm], groups: dict[str, tuple[str, ...]], objectives=(),
-                 bounded: tuple[str, ...] = (), hard: tuple[str, ...] = (), gated: tuple[str, ...] = (),
+                 hard: tuple[str, ...] = (), gated: tuple[str, ...] = (),
                  targets: dict[str, float] | None = None):
         super().__init__(terms, objectives)
-        self.bounded = tuple(bounded)
         self.hard = tuple(hard)
         self.groups = {c: tuple(t for t in ts if t in terms) for c, ts in groups.items()}
         self.groups = {c: ts for c, ts in self.groups.items() if ts}
@@ -341,10 +333,6 @@ class CheckedMultipliers(WeightedSum):
                 f = self.GROWTH if c in self.hard else min(q * q, self.GROWTH)
                 self.scale[c] *= f
                 raised[c] = f
-            elif before is not None and q < 1.0 and c in self.bounded:
-                f = max(q * q, 1.0 / self.GROWTH)
-                self.scale[c] *= f
-                raised[c] = f
             self.previous[c] = q
         return raised
 
@@ -373,8 +361,6 @@ class Balance:
             ``adaptive`` (the rest are objectives).
         groups: ``{constraint: (term, ...)}``: the constraints of the feasibility verdict and the
             terms that enforce each, for ``feasibility``.
-        bounded: the constraints of ``groups`` that bound an objective from below (a least
-            diversity): their multipliers also fall while the bound is met.
         hard: the constraints of ``groups`` whose bound has no tolerance (an interval on a
             volume or an area): a violation raises them by the full factor.
         gated: the objectives that act in proportion to how closely the terms of ``groups`` meet
@@ -383,7 +369,6 @@ class Balance:
 
     targets: dict[str, float] = field(default_factory=dict)
     groups: dict[str, tuple[str, ...]] = field(default_factory=dict)
-    bounded: tuple[str, ...] = ()
     hard: tuple[str, ...] = ()
     gated: tuple[str, ...] = ()
 
@@ -396,7 +381,7 @@ def make_balancer(terms: dict[str, LossTerm], cfg: BalancingConfig, balance: Bal
     if cfg.method == "adaptive":
         return AdaptiveMultipliers(terms, b.targets)
     if cfg.method == "feasibility":
-        return CheckedMultipliers(terms, b.groups, cfg.objectives, b.bounded, b.hard, b.gated, b.targets)
+        return CheckedMultipliers(terms, b.groups, cfg.objectives, b.hard, b.gated, b.targets)
     return AugmentedLagrangian(terms, cfg)
 
 

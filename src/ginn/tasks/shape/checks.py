@@ -26,7 +26,7 @@ from collections.abc import Callable, Sequence
 from torch import Tensor, nn
 
 from ...config import TrainingConfig
-from ...constraints import Verdict
+from ...constraints import Constraint, Verdict
 from ...eval.results import FeasibilitySummary
 from ...train.callbacks import Callback, StopRun
 from ...train.trainer import Trainer
@@ -64,13 +64,15 @@ class FeasibilityChecks(Callback):
         judge: the summary of the model's shapes now (:class:`ginn.eval.feasibility.FeasibilityCheck`).
         training: the run's training settings.
         verdicts: what the summaries judge (for their texts).
+        constraints: the task's terms, each told every check's ratios (:meth:`Constraint.checked`).
     """
 
     key = "feasibility"
 
     def __init__(self, judge: Callable[[nn.Module], FeasibilitySummary], training: TrainingConfig,
-                 verdicts: Sequence[Verdict] = ()):
+                 verdicts: Sequence[Verdict] = (), constraints: Sequence[Constraint] = ()):
         self.judge, self.t, self.verdicts = judge, training, list(verdicts)
+        self.constraints = list(constraints)
         self.last: FeasibilitySummary | None = None  # the last check's summary
         self.objective = [0.0, 0]  # sum and count of the objective terms since the last check
         self.objective_before: float | None = None  # their mean over the interval before
@@ -156,6 +158,8 @@ class FeasibilityChecks(Callback):
         ``stop_when_feasible`` ends the run (raises :class:`StopRun`)."""
         summary = self.judge(trainer.model)
         self.last = summary
+        for c in self.constraints:
+            c.checked(summary.ratios)
         record = {"step": trainer.step, "event": "feasibility", "feasible": summary.feasible, "shapes": summary.shapes,
                   "worst": summary.worst, "violated": summary.violated_counts(), "ratios": summary.ratios}
         if summary.heldout is not None:

@@ -201,8 +201,7 @@ class ShapeTask(Task):
     def balance(self) -> Balance:
         """Each constraint's target, the verdict's constraints with the terms that enforce them
         (a verdict that is no constraint's own, such as the reference, with its ``enforced_by``),
-        the verdicts that bound an objective (a least diversity), the hard bounds and the gated
-        objectives."""
+        the hard bounds and the gated objectives."""
         groups: dict[str, tuple[str, ...]] = {}
         for c in self.constraints:
             if c.verdict is not None:
@@ -211,7 +210,6 @@ class ShapeTask(Task):
             if v.enforced_by:
                 groups[v.name] = groups.get(v.name, ()) + v.enforced_by
         return Balance(targets={c.name: t for c in self.constraints if (t := c.target()) is not None}, groups=groups,
-                       bounded=tuple(c.verdict.name for c in self.constraints if c.bounds_objective()),
                        hard=tuple(c.verdict.name for c in self.constraints if c.verdict is not None and c.verdict.hard),
                        gated=tuple(c.name for c in self.constraints if c.gated))
 
@@ -239,4 +237,4 @@ class ShapeTask(Task):
         t = self.cfg.training
         if dist is not None or t.feasibility_checks <= 0 or t.iterations <= 0:
             return []
-        return [FeasibilityChecks(lambda model: self.checker()(model, self.Z), t, self.verdicts())]
+        return [FeasibilityChecks(lambda model: self.checker()(model, self.Z), t, self.verdicts(), self.constraints)]
