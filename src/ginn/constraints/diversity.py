@@ -87,7 +87,8 @@ class Diversity(Constraint):
         p = setting.problem
         self._verdict = LeastDiversity(p) if p.tolerances.diversity is not None else None
         self.calibration = 1.0  # the estimate over the verdict's measurement at the last check
-        self.average = [0.0, 0]  # the running average of the estimate (not bias-corrected) and its count
+        self.average: list = [0.0, 0]  # the running average of the estimate (not bias-corrected, a tensor once
+        # updated, so that a step never waits for the device) and its count
 
     @property
     def verdict(self) -> LeastDiversity | None:
@@ -107,13 +108,13 @@ class Diversity(Constraint):
         delta = mean_diversity(distance_matrix(boundary_distances(x, mask, f, g), mask))
         batch.diagnostics["_diversity_mean"] = delta.detach()
         avg, n = self.average
-        self.average = [self.AVERAGE * avg + (1.0 - self.AVERAGE) * float(delta.detach()), n + 1]
+        self.average = [self.AVERAGE * avg + (1.0 - self.AVERAGE) * delta.detach(), n + 1]
         return torch.relu(1.0 - delta / (self.calibration * self._verdict.bound))
 
     def estimate(self) -> float | None:
         """The bias-corrected running average of the training estimate (None before a step)."""
         avg, n = self.average
-        return avg / (1.0 - self.AVERAGE ** n) if n else None
+        return float(avg) / (1.0 - self.AVERAGE ** n) if n else None
 
     def checked(self, ratios) -> None:
         """Calibrate on the check's ``diversity_mean`` (``bound / ratio``; module docstring)."""
@@ -123,12 +124,15 @@ class Diversity(Constraint):
         self.calibration = est / (self._verdict.bound / q)
 
     def state_dict(self) -> dict:
-        return {"calibration": self.calibration, "average": list(self.average)} if self._verdict is not None else {}
+        if self._verdict is None:
+            return {}
+        avg, n = self.average
+        return {"calibration": self.calibration, "average": [avg.clone() if torch.is_tensor(avg) else avg, n]}
 
     def load_state_dict(self, state: dict) -> None:
         self.calibration = float(state.get("calibration", 1.0))
         avg, n = state.get("average", [0.0, 0])
-        self.average = [float(avg), int(n)]
+        self.average = [avg.to(self.setting.device) if torch.is_tensor(avg) else float(avg), int(n)]
 
     def loss(self, batch: Batch) -> Tensor | None:
         if batch.Z is None:

@@ -265,7 +265,7 @@ def boundary_distances(x: Tensor, mask: Tensor | None, f: Tensor, grad: Tensor, 
     moved = (f - f.detach()) / gn  # (S, m): the boundary's displacement against its normal, zero in value
     Y = x.reshape(S * m, d)
     far = torch.where(valid.reshape(1, S * m), 0.0, float("inf")).to(x.dtype)
-    rows = max(1, chunk // max(S * S * m, 1))
+    rows = max(1, chunk // max(m * S * m, 1))  # shapes per block of at most ``chunk`` distances
     near = []
     with torch.no_grad():
         own = torch.cdist(x, x, compute_mode="donot_use_mm_for_euclid_dist")  # (S, m, m)
