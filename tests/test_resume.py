@@ -83,6 +83,9 @@ CASES = {
         "training.feasibility_checks=4"]),
     "structural (compliance, volume offset)": ("mbb", None, ["training.threads=1", "model.hidden=[16,16]",
                                                              "structural.cells=30"]),
+    "structural, a least diversity (its running estimate and calibration)": ("cantilever", None, [
+        "training.threads=1", "model.hidden=[16,16]", "structural.cells=30", "latents.n_shapes=3",
+        "training.feasibility_checks=4"]),
     "structural, CG warm starts": ("mbb", None, ["training.threads=1", "model.hidden=[16,16]", "structural.cells=30",
                                                  "structural.method=cg"]),
     "gated curvature objective, reference verdict": ("plateau", None, [
