@@ -116,7 +116,7 @@ class Diversity(Constraint):
         avg, n = self.average
         return float(avg) / (1.0 - self.AVERAGE ** n) if n else None
 
-    def checked(self, ratios) -> None:
+    def checked(self, ratios: Mapping[str, float | None]) -> None:
         """Calibrate on the check's ``diversity_mean`` (``bound / ratio``; module docstring)."""
         q, est = ratios.get("diversity"), self.estimate()
         if self._verdict is None or q is None or est is None or not math.isfinite(q) or q <= 0:
