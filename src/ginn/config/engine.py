@@ -35,6 +35,10 @@ class ModelConfig(Strict):
         "(siren; 1 for the other kinds), written resolved to the run's config.yaml: 1 in one dimension (the "
         "paper's), and in k dimensions the box spans as many first-layer periods as the interval of one dimension "
         "(docs/results.md, \"The latent set\")")
+    latent_turns: float | None = Field(
+        None, gt=0, description="radians the first layer's frequency turns along one latent axis over the latent "
+        "range, r * w * latent_scale (w = omega_0^1 for a siren, else 1); when set and latent_scale is unset, "
+        "latent_scale resolves to latent_turns / (r w); unset: the rule of latent_scale")
     activation: str = Field("tanh", description="activation (mlp, fourier)", json_schema_extra={"kinds": ("mlp", "fourier")})
     beta: float = Field(1.0, gt=0, description="softplus sharpness (resmlp, softplus activations)",
                         json_schema_extra={"kinds": ("resmlp", "mlp", "fourier")})

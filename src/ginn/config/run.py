@@ -50,11 +50,16 @@ def latent_frequency_scale(model: ModelConfig, latents: LatentConfig) -> float:
     square (16 shapes, seed 0) the unscaled codes left 5 of 16 reported shapes and 95 of 256
     held-out codes feasible; with the rule's 0.19, all 16 and 255 of 256 (seed 1: 256 of 256;
     ``docs/results.md``, "The latent set"). One dimension: 1, the paper's.
+
+    With ``model.latent_turns`` set, the first layer turns through that many radians along each
+    latent axis instead: ``latent_turns / (r w)``.
     """
-    if latents.dim <= 1:
-        return 1.0
     w = model.w0_first if model.kind == "siren" else 1.0
     turns = max((latents.high - latents.low) * w, 1e-12)
+    if model.latent_turns is not None:
+        return float(model.latent_turns / turns)
+    if latents.dim <= 1:
+        return 1.0
     return float(turns ** (1.0 / latents.dim - 1.0))
 
 

@@ -125,6 +125,13 @@ RULES: tuple[Rule, ...] = (
     Rule("model.frame", "`domain`", lambda g: "domain",
          "the network sees `(x - c) / s` (`c` the domain's centre) and returns `s` times its output, so a problem "
          "of any size looks the same to it", "s"),
+    Rule("model.latent_turns", "d + 1 with `tolerances.diversity`", lambda g: g.d + 1.0 if g.least_diversity else None,
+         "a SIREN's first-layer weights start within 1/fan_in (fan_in = d + 1 with one latent axis), so over the "
+         "latent range each neuron's phase moves by at most a radian, where the sine is nearly linear: the set "
+         "starts as one shape, smoothly deformed, and the least diversity's shortfall spreads it only as far as the "
+         "bound asks. With the paper's latent scale the cantilever's first layer turns through 24.5 radians, about "
+         "four unrelated shapes at the start (`docs/structural.md`, \"Sixteen shapes\"); only with "
+         "`tolerances.diversity`, where the diversity is a constraint, not an objective", "d"),
     Rule("latents.draw", "`lattice`", lambda g: "lattice",
          "a generative model trains its whole latent set, a randomly shifted lattice of codes at every step "
          "(`ginn.models.latents`): on the obstacle with 4 shapes (seed 0) training the reported codes alone left 5 "
