@@ -117,6 +117,31 @@ def test_a_least_diversity_weighs_its_shortfall_like_a_volume_fraction():
     assert cfg.losses.diversity.weight == pytest.approx(0.015 / length_scale(spec.build()))
 
 
+def test_a_least_diversity_starts_the_set_alike():
+    """With ``tolerances.diversity`` the first layer turns through ``d + 1`` radians over the latent
+    range, so no first-layer neuron's phase moves by more than a radian from one end of Z to the
+    other (its weights start within ``1 / fan_in``, ``fan_in = d + 1``); without, the paper's scale
+    of 1 turns it through ``r w`` (24.5 radians on the cantilever); a scale the user sets stays."""
+    from ginn.models import build_model
+
+    _, cfg = runs.resolve("cantilever", None)
+    r, w = cfg.latents.high - cfg.latents.low, cfg.model.w0_first
+    assert cfg.model.latent_turns == 3.0
+    assert cfg.model.latent_scale == pytest.approx(3.0 / (r * w), rel=1e-12)
+    assert r * w == pytest.approx(24.49, abs=0.01)
+    torch.manual_seed(0)
+    net = build_model(cfg.model, 2, 1).double()
+    x = torch.rand(64, 2, dtype=torch.float64)
+    with torch.no_grad():
+        ends = [net.preactivations(x, torch.full((64, 1), v, dtype=torch.float64))[0] for v in (cfg.latents.low, cfg.latents.high)]
+    turn = (ends[1] - ends[0]).abs()
+    assert float(turn.max()) <= 1.0 and float(turn.max()) > 0.8  # 64 neurons: the bound is nearly reached
+    _, own = runs.resolve("cantilever", None, sets=["model.latent_scale=1"])
+    assert own.model.latent_scale == 1.0
+    _, obstacle = runs.resolve("obstacle", None)
+    assert obstacle.model.latent_turns is None and obstacle.model.latent_scale == 1.0
+
+
 def test_a_check_calibrates_the_term_on_the_verdicts_measurement():
     task = _cantilever_task(0.2)
     term = next(c for c in task.constraints if c.name == "diversity")

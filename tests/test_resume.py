@@ -367,13 +367,15 @@ def test_compiled_kernels_resume_bitwise(tmp_path, capsys):
     sets += ["training.iterations=20", "training.checkpoint_every=1000", "training.checkpoint_seconds=0.2"]
     whole, out = tmp_path / "whole", tmp_path / "killed"
     proc = _cli("obstacle", "--preset", "demo", out=out, sets=sets)
-    spec, cfg = runs.resolve("obstacle", "demo", sets=sets)
-    runs.train(spec, cfg, whole, progress=False, results=False)  # meanwhile, here
     while _poll_step(out / "metrics.jsonl") < 12 and proc.poll() is None:
         time.sleep(0.02)
     assert proc.poll() is None, proc.stderr.read()
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait()
+    # the uninterrupted run after the kill: trained while the other process runs, it could let
+    # that process reach its last step before the poll saw step 12
+    spec, cfg = runs.resolve("obstacle", "demo", sets=sets)
+    runs.train(spec, cfg, whole, progress=False, results=False)
     assert read_status(out).status in ("running", "unknown") and main(["status", str(out)]) == 0
     said = capsys.readouterr().out
     assert "not running" in said or "unknown" in said, said
