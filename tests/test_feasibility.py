@@ -314,6 +314,22 @@ def test_run_ends_with_the_weights_of_the_most_feasible_check(tmp_path, keep):
     assert tr2.callbacks[-1].restored is None
 
 
+def test_the_kept_candidate_meets_the_sets_bounds_among_equals():
+    """Candidates rank by feasible shapes, then by the set's bounds (a least diversity), then by
+    feasible held-out codes."""
+    short = {"diversity": Violation(0.046, 0.05)}
+
+    def summary(k, set_violations=None, heldout=0):
+        return FeasibilitySummary(k, 4, [{}] * k + [{"interface": Violation(1.0, 0.5)}] * (4 - k),
+                                  set_violations=set_violations or {}, heldout=FeasibilitySummary(heldout, 8, [{}] * 8))
+
+    ranked = [summary(4, short, heldout=8), summary(4, heldout=2), summary(3, heldout=8), summary(3, short, heldout=8),
+              summary(4, heldout=3)]
+    best = sorted(ranked, key=lambda c: c.rank(), reverse=True)
+    assert [(c.feasible, bool(c.set_violations), c.heldout.feasible) for c in best] == [
+        (4, False, 3), (4, False, 2), (4, True, 8), (3, False, 8), (3, True, 8)]
+
+
 def test_a_least_diversity_is_a_bound_on_the_set():
     # two concentric circles r and r + 0.1: each side of the chamfer discrepancy is 0.1, so
     # CD2 = 0.1 sqrt(2) and for two shapes diversity_mean = CD2

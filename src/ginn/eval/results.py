@@ -129,9 +129,10 @@ class FeasibilitySummary:
         """The feasible share of the shapes."""
         return self.feasible / self.shapes if self.shapes else 1.0
 
-    def rank(self) -> tuple[int, int]:
-        """What a better candidate has more of: feasible reported shapes, then feasible held-out codes."""
-        return self.feasible, 0 if self.heldout is None else self.heldout.feasible
+    def rank(self) -> tuple[int, bool, int]:
+        """What a better candidate has more of: feasible reported shapes, then the set's bounds met
+        (a least diversity), then feasible held-out codes."""
+        return self.feasible, not self.set_violations, 0 if self.heldout is None else self.heldout.feasible
 
     def judged_ratios(self) -> dict[str, float | None]:
         """Each constraint's largest value over its bound over the reported shapes and the

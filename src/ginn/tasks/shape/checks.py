@@ -9,8 +9,9 @@ tolerances on a coarse grid (:class:`ginn.eval.feasibility.FeasibilityCheck`, th
   feasibility`` raises the multipliers of the constraints off track): the better of the iterate's
   and the interval mean's (:func:`candidate_ratios`);
 * ``training.keep_most_feasible``: judges the mean of the weights since the previous check as
-  well, and keeps the candidate with the most feasible shapes (the mean on a tie at one check, the
-  latest of equals); a completed run ends with it (a ``restored`` event when that is not the last
+  well, and keeps the best candidate (:meth:`FeasibilitySummary.rank`: the most feasible shapes,
+  then the set's bounds met, then the most feasible held-out codes; the mean on a tie at one
+  check, the latest of equals); a completed run ends with it (a ``restored`` event when that is not the last
   iterate);
 * ``training.stop_when_feasible``: ends the run when every shape is feasible, the set meets its
   bounds and the objective terms moved by less than 1 % since the previous check.
