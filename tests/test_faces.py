@@ -80,6 +80,26 @@ def test_loss_is_one_minus_the_cosine_to_the_face_normal(beta):
     assert float(terms["faces"].detach()) == pytest.approx(1 - math.cos(math.radians(90 - beta)), abs=1e-6)
 
 
+def test_loss_evaluates_the_field_at_every_surface_sample_whatever_the_faces_share():
+    """One call of the field on all surface samples however many fall in each face's region: a
+    compiled SIREN's kernels are made per shape of input."""
+    class Recording(LineField):
+        def forward(self, x, z=None):
+            sizes.append(x.shape[0])
+            return super().forward(x, z)
+
+    seen = []
+    for half in (0.1, 0.5):
+        spec = _spec([{"region": {"type": "rectangle", "lo": [-half, -half], "hi": [half, half]}, "normal": [0, 1]},
+                      {"region": EVERYWHERE, "normal": [0, 1]}])
+        task = make_task(spec, spec.config(None, {"sampling": {"n_domain": 2048, "n_boundary": 64}}))
+        sizes = []
+        terms = task.loss_terms(Recording(30.0), 0, {"faces"}, torch.Generator().manual_seed(0))
+        assert float(terms["faces"].detach()) == pytest.approx(2 * (1 - math.cos(math.radians(60))), abs=1e-6)
+        seen.append(sorted(set(sizes)))
+    assert seen[0] == seen[1] and 64 in seen[0]
+
+
 def _disk(r):
     return as_field(lambda x: x.norm(dim=-1) - r)
 

@@ -147,24 +147,29 @@ class Faces(Constraint):
         srf = batch.surface()
         p = srf.x.reshape(-1, batch.d)
         ok = srf.converged.reshape(-1)
+        with torch.no_grad():
+            sels = [ok & face.region.contains(p) for face in self._verdict.faces]
+        if not any(bool(sel.any()) for sel in sels):
+            return None
+        # every sample, each face's own masked: one shape of call per run (a compiled SIREN's
+        # kernels are made per shape of input, and a face's share of the samples varies by step)
         zs = None if batch.Z is None else batch.latents_of(srf.x)
+        v = fields.evaluate(batch.model, p, zs, grad=True, create_graph=True)
+        n = v.grad / v.grad.norm(dim=-1, keepdim=True).clamp_min(1e-12)
+        g2 = (v.grad * v.grad).sum(-1).clamp_min(1e-24)
         out = None
-        for face, t in zip(self._verdict.faces, self.normals):
-            with torch.no_grad():
-                sel = ok & face.region.contains(p)
-            if not bool(sel.any()):
+        for face, t, sel in zip(self._verdict.faces, self.normals, sels):
+            count = int(sel.sum())
+            if count == 0:
                 continue
-            v = fields.evaluate(batch.model, p[sel], None if zs is None else zs[sel], grad=True, create_graph=True)
-            n = v.grad / v.grad.norm(dim=-1, keepdim=True).clamp_min(1e-12)
             if t is not None:
-                term = (1.0 - n @ t).mean()
+                term = torch.where(sel, 1.0 - n @ t, 0.0).sum() / count
             else:
-                g2 = (v.grad * v.grad).sum(-1).clamp_min(1e-24)
-                s, nu = surface_distance(face.surface, p[sel], _step(batch.setting.problem))
-                s, nu = s.to(v.grad.dtype), nu.to(v.grad.dtype)
+                s, nu = surface_distance(face.surface, p, _step(batch.setting.problem))
+                s, nu = torch.where(sel, s.to(v.grad.dtype), 0.0), nu.to(v.grad.dtype)
                 s1 = s - v.f * (nu * v.grad).sum(-1) / g2
-                term = (1.0 - (n * nu).sum(-1).abs()).mean() + (1.0 - math.cos(math.radians(face.angle))) * (
-                    (s1 / face.distance) ** 2).mean()
+                term = (torch.where(sel, 1.0 - (n * nu).sum(-1).abs(), 0.0).sum()
+                        + (1.0 - math.cos(math.radians(face.angle))) * torch.where(sel, (s1 / face.distance) ** 2, 0.0).sum()) / count
             out = term if out is None else out + term
         return out
 
