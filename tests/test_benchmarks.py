@@ -24,3 +24,23 @@ def test_seconds_per_iteration_reads_the_last_logged_iteration(tmp_path):
     # from the end of iteration 0 on: without what the run paid once at its start
     assert ab.seconds_per_iteration(tmp_path, after_first=True) == (4.0 - 0.3) / 20
     assert ab.seconds_per_iteration(tmp_path / "missing") is None
+
+
+def test_scaling_shares_of_a_segment_a_circle_and_a_square():
+    """Points on a segment: all the variance on one axis; evenly on a circle: half on each of two;
+    the corners of a square: half on each of two; the shares sum to 1."""
+    import numpy as np
+
+    fa = _load("family_axes")
+
+    def dist(P):
+        return np.linalg.norm(P[:, None] - P[None], axis=-1)
+
+    t = np.linspace(-1, 1, 16)
+    seg = fa.scaling_shares(dist(np.c_[t, 2 * t, 0 * t]))
+    assert abs(seg[0] - 1) < 1e-12
+    a = np.linspace(0, 2 * np.pi, 17)[:-1]
+    circle = fa.scaling_shares(dist(np.c_[np.cos(a), np.sin(a)]))
+    assert np.allclose(circle[:3], [0.5, 0.5, 0.0], atol=1e-12)
+    square = fa.scaling_shares(dist(np.array([[0, 0], [1, 0], [1, 1], [0, 1.0]])))
+    assert np.allclose(square, [0.5, 0.5, 0, 0], atol=1e-12) and abs(square.sum() - 1) < 1e-12
