@@ -4,6 +4,8 @@ import importlib.util
 import json
 from pathlib import Path
 
+import numpy as np
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -29,8 +31,6 @@ def test_seconds_per_iteration_reads_the_last_logged_iteration(tmp_path):
 def test_scaling_shares_of_a_segment_a_circle_and_a_square():
     """Points on a segment: all the variance on one axis; evenly on a circle: half on each of two;
     the corners of a square: half on each of two; the shares sum to 1."""
-    import numpy as np
-
     fa = _load("family_axes")
 
     def dist(P):
