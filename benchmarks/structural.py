@@ -3,6 +3,7 @@
     python benchmarks/structural.py simp        # the half MBB beam, 60 x 20, against the 88-line code
     python benchmarks/structural.py solver      # direct vs CG, batched vs one by one (ratios, interleaved)
     python benchmarks/structural.py mbb RUN     # a run of a structural problem against SIMP on the same problem
+    python benchmarks/structural.py grids RUN   # the run's exported shapes and SIMP's design re-solved on other grids
 
 ``simp`` runs :func:`ginn.physics.simp` on the half MBB beam of Sigmund (2001) and Andreassen et al.
 (2011): 60 x 20 unit elements, the left edge on rollers (the symmetry line), the lower right corner
@@ -20,6 +21,14 @@ configurations take turns block by block and the script prints medians and ratio
 ``mbb RUN`` (any structural problem's run, after ``ginn eval RUN``) prints the run's volume
 fractions and compliances from its ``metrics.json`` beside the SIMP reference of its problem
 (:func:`ginn.problems.structural.simp_reference`) and their ratio.
+
+``grids RUN`` (a 2D structural run, after ``ginn train``, which exports the shapes) reads the
+shapes' exported contours (``shapes/*.json``), not the network, fills each grid's elements whose
+centre lies inside them (even-odd: outlines and holes), and solves every shape and the SIMP
+reference's thresholded design (each grid element takes the value of the default-grid element
+under its centre) on grids of ``--cells`` elements along the longest side, nested in the default
+grid or not. It prints, per grid, SIMP's compliance, the shapes' compliances, their ratios to SIMP's
+and their volume fractions: whether the report's numbers hold on grids other than its own.
 """
 
 from __future__ import annotations
@@ -34,10 +43,12 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse.linalg as spla
 import torch
+from skimage.draw import polygon
 
 from ginn.physics import ElasticitySolver, ElementGrid, simp
 from ginn.problems import load_spec
-from ginn.problems.structural import simp_reference
+from ginn.problems.derived import smallest_feature
+from ginn.problems.structural import VOID, held_elements, simp_reference, structural_grid, structural_solver, void_elements
 
 PUBLISHED = {("sensitivity", 2.4): 216.81, ("density", 2.4): 233.71}
 
@@ -168,10 +179,69 @@ def run_against_simp(run: Path) -> None:
               f"/ SIMP {c / ref.compliance:.3f}")
 
 
+def contour_mask(contours: list[np.ndarray], grid: ElementGrid) -> np.ndarray:
+    """``(n_elements,)`` bool: the elements of a 2D ``grid`` whose centre lies inside the shape that the
+    closed polylines ``contours`` (each ``(n, 2)``) bound, by the even-odd rule (an outline and its holes)."""
+    if grid.dim != 2:
+        raise ValueError("contour_mask: a 2D grid")
+    lo, h = np.asarray(grid.lo, float), grid.h
+    inside = np.zeros(grid.shape, bool)
+    for c in contours:
+        c = np.asarray(c, float)
+        # element (i, j) has its centre at lo + (i + 1/2, j + 1/2) h: pixel (i, j) in skimage's terms
+        i, j = polygon((c[:, 0] - lo[0]) / h[0] - 0.5, (c[:, 1] - lo[1]) / h[1] - 0.5, grid.shape)
+        inside[i, j] ^= True
+    return inside.reshape(-1)
+
+
+def resampled(values: np.ndarray, source: ElementGrid, grid: ElementGrid) -> np.ndarray:
+    """Per-element ``values`` ``(n_elements,)`` of ``source`` on ``grid``: each element takes the value
+    of the ``source`` element under its centre."""
+    idx = np.floor((grid.centres - np.asarray(source.lo)) / source.h).astype(int)
+    idx = np.clip(idx, 0, np.asarray(source.shape) - 1)
+    return np.asarray(values).reshape(source.shape)[tuple(idx.T)]
+
+
+def run_on_grids(run: Path, cells: list[int]) -> None:
+    problem = load_spec(run / "problem.yaml").build()
+    files = sorted((run / "shapes").glob("shape_*.json"))
+    if problem.dim != 2 or not files:
+        raise SystemExit(f"{run}: needs a 2D structural run with exported shapes (shapes/shape_*.json)")
+    shapes = [[np.asarray(c) for c in json.loads(f.read_text())["contours"]] for f in files]
+    ref = simp_reference(problem)
+    base = structural_grid(problem, 0, smallest_feature(problem))
+    report = [s.get("compliance") for s in json.loads((run / "metrics.json").read_text())["shapes"]] \
+        if (run / "metrics.json").exists() else []
+    print(f"{len(shapes)} shapes from {run / 'shapes'}; default grid {'x'.join(map(str, base.shape))}")
+    if report:
+        print(f"the report (ginn eval, {'x'.join(map(str, base.refined(2).shape))} from the field): "
+              f"{min(report):.1f} to {max(report):.1f} (mean {np.mean(report):.1f})")
+    print("| grid | SIMP | shapes | / SIMP | volume fractions | shapes with a load or interface support node on void | seconds |")
+    print("|---|---|---|---|---|---|---|")
+    E = float(problem.physics.youngs_modulus)
+    for n in cells:
+        t = time.perf_counter()
+        grid = structural_grid(problem, n, smallest_feature(problem))
+        solver, w = structural_solver(problem, grid)
+        void = void_elements(problem, grid)
+        solid = np.stack([resampled(ref.solid, base, grid)] + [contour_mask(c, grid) for c in shapes]) & ~void
+        U = solver.solve(torch.as_tensor(E * np.where(solid, 1.0, VOID)))
+        c = solver.work(U).numpy() @ w
+        vol = solid[:, ~void].mean(axis=1)
+        around = held_elements(problem, grid)  # (n_held, 2^d), -1: no element of E in the slot
+        unheld = ~(np.append(solid, np.zeros((len(solid), 1), bool), axis=1)[:, around]).any(axis=2).all(axis=1)
+        r = c[1:] / c[0]
+        print(f"| {'x'.join(map(str, grid.shape))} | {c[0]:.1f} (volume {vol[0]:.3f}) | {c[1:].min():.1f} to "
+              f"{c[1:].max():.1f} (mean {c[1:].mean():.1f}) | {r.min():.3f} to {r.max():.3f} (mean {r.mean():.3f}) | "
+              f"{vol[1:].min():.4f} to {vol[1:].max():.4f} | {int(unheld[1:].sum())} | {time.perf_counter() - t:.0f} |", flush=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("what", choices=["simp", "solver", "mbb"])
-    ap.add_argument("run", nargs="?", type=Path, help="mbb: the run directory")
+    ap.add_argument("what", choices=["simp", "solver", "mbb", "grids"])
+    ap.add_argument("run", nargs="?", type=Path, help="mbb, grids: the run directory")
+    ap.add_argument("--cells", type=int, nargs="+", default=[90, 135, 180, 270, 360],
+                    help="grids: elements along the longest side of each grid")
     ap.add_argument("--blocks", type=int, default=3, help="solver: alternating blocks per configuration")
     a = ap.parse_args()
     if a.what == "simp":
@@ -180,8 +250,11 @@ def main() -> None:
         run_solver(a.blocks)
     else:
         if a.run is None:
-            ap.error("mbb needs the run directory")
-        run_against_simp(a.run)
+            ap.error(f"{a.what} needs the run directory")
+        if a.what == "grids":
+            run_on_grids(a.run, a.cells)
+        else:
+            run_against_simp(a.run)
 
 
 if __name__ == "__main__":
