@@ -283,11 +283,10 @@ class _Field:
 def test_attachment_holds_the_load_pads_not_the_clamped_wall():
     """The cantilever's pads at x = 1.5, y in [0.1, 0.2] and [0.8, 0.9]: 7 nodes each on the
     90 x 60 grid (spacing 1/60, reach half of it), each with 2 elements in E; the clamped wall (a
-    region) is not held. The term and its verdict read this grid and the report's (twice as fine:
-    13 nodes a pad). Loss ``relu(m + w/2) / w``, ``w`` from START_WIDTH times the depth (0.5 less half
-    the grid's element) to half the grid's element; the verdict's share of the nodes of both grids
-    off the thresholded shape; a skin thinner than half an element along the pads is held on the
-    report's grid only."""
+    region) is not held. The term reads the report's grid (twice as fine: 13 nodes a pad) as its
+    verdict does. Loss ``relu(m + w/2) / w``, ``w`` from START_WIDTH times the depth (the report
+    grid's: 0.5 less half its element) to ``h / 2``; the verdict's share of nodes off the
+    thresholded shape."""
     setting = _setting("cantilever", cells=0)
     p = setting.problem
     grid = structural_grid(p)
@@ -300,33 +299,24 @@ def test_attachment_holds_the_load_pads_not_the_clamped_wall():
     assert around.shape == (14, 4) and (around >= 0).sum() == 28
     assert np.allclose(grid.centres[around[around >= 0], 0], 1.5 - 1 / 120)
     term = Attachment(setting)
-    h = 1 / 120  # the report grid's element side; the default grid's is 2 h
+    h = 1 / 120
     n = setting.cfg.training.iterations  # the step width follows the compliance's continuation
     assert term.width(0) == pytest.approx(START_WIDTH * (0.5 - h / 2)) and term.width(n // 2) == pytest.approx(h / 2)
     assert term.width(n // 4) == pytest.approx(np.sqrt(term.width(0) * h / 2), rel=1e-9)
-    assert term.width(n // 2, grid=0) == pytest.approx(h) and term.width(0, grid=0) == pytest.approx(START_WIDTH * (0.5 - h))
-    # both grids: 14 nodes over 16 elements of the default grid, 26 over 28 of the report's
-    assert term.elements.shape == (40, 4) and int(term.present.sum()) == 28 + 52 and term.points.shape == (44, 2)
-    assert np.allclose(term.points[:16, 0], 1.5 - h) and np.allclose(term.points[16:, 0], 1.5 - h / 2)
-    assert term.grid_of.tolist() == [0] * 14 + [1] * 26
+    assert term.elements.shape == (26, 4) and int(term.present.sum()) == 52 and term.points.shape == (28, 2)
+    assert np.allclose(term.points[:, 0], 1.5 - h / 2)  # the report grid's centres by the pads
     xc = term.points
-    # solid up to one report element short of the pads: m = h / 2 on the report grid, m = 0 on the default one
-    loss = term.loss(_Field((xc[:, 0] - 1.5 + h)[None]))
-    fine, coarse = (h / 2 + h / 4) / (h / 2), (0 + h / 2) / h
-    assert float(loss) == pytest.approx((26 * fine + 14 * coarse) / 40, rel=1e-9)
+    loss = term.loss(_Field((xc[:, 0] - 1.5 + h)[None]))  # solid up to one element short: m = h / 2
+    assert float(loss) == pytest.approx((h / 2 + h / 4) / (h / 2), rel=1e-9)
     assert float(term.loss(_Field((xc[:, 0] - 1.6)[None]))) == 0.0
     low = term.loss(_Field(torch.where(xc[:, 1] < 0.5, xc[:, 0] - 1.6, xc[:, 0] - 1.5 + h)[None]))
     assert float(low) == pytest.approx(0.5 * float(loss), rel=1e-9)  # one pad held of two
-    w0, w0c = term.width(0), term.width(0, grid=0)  # at the start the same shape costs less
+    w0 = term.width(0)  # at the start the same shape costs (h / 2 + w0 / 2) / w0
     early = term.loss(_Field((xc[:, 0] - 1.5 + h)[None], step=0))
-    assert float(early) == pytest.approx((26 * (h / 2 + w0 / 2) / w0 + 14 * (w0c / 2) / w0c) / 40, rel=1e-9)
-    # a shape that stops a quarter of a pad short of its lower end: 3 of the report grid's 13 nodes
-    # and 1 of the default grid's 7 (its next element's centre is at y = 0.125) unheld
+    assert float(early) == pytest.approx((h / 2 + w0 / 2) / w0, rel=1e-9)
+    # a shape that stops a quarter of a pad short of its lower end: 3 of its 13 nodes unheld
     short = term.loss(_Field(torch.where(xc[:, 1] < 0.125, xc[:, 0] - 1.5 + h, xc[:, 0] - 1.6)[None]))
-    assert float(short) == pytest.approx((3 * fine + 1 * coarse) / 40, rel=1e-9)
-    # a skin of half a default element along the pads: held on the report grid, not on the default one
-    skin = term.loss(_Field(torch.where(xc[:, 0] > 1.5 - 0.75 * h, xc[:, 0] - 1.6, xc[:, 0] - 1.4)[None]))
-    assert float(skin) == pytest.approx(14 * (0.1 - h + h / 2) / h / 40, rel=1e-9)
+    assert float(short) == pytest.approx(3 / 26 * (h / 2 + h / 4) / (h / 2), rel=1e-9)
     v = AttachmentVerdict(p)
     m = v.measure(None, None, lambda x, z=None: x[:, 0] - 1.6, None)
     assert m == {"unheld_nodes": 0.0} and v.violation(m) is None and v.ratio(m) == 0.0
@@ -334,9 +324,7 @@ def test_attachment_holds_the_load_pads_not_the_clamped_wall():
     assert m["unheld_nodes"] == pytest.approx(0.5) and v.ratio(m) == pytest.approx(1.5)
     assert v.violation(m).value == pytest.approx(0.5) and "0.5 of the load" in v.describe(v.violation(m))
     m = v.measure(None, None, lambda x, z=None: torch.where(x[:, 1] < 0.125, x[:, 0] - 1.4, x[:, 0] - 1.6), None)
-    assert m["unheld_nodes"] == pytest.approx(4 / 40)
-    m = v.measure(None, None, lambda x, z=None: torch.where(x[:, 0] > 1.5 - 0.75 * h, x[:, 0] - 1.6, x[:, 0] - 1.4), None)
-    assert m["unheld_nodes"] == pytest.approx(14 / 40)  # the skin: every default-grid node off the shape
+    assert m["unheld_nodes"] == pytest.approx(3 / 26)
 
 
 def test_feasibility_checks_leave_the_compliance_report_to_eval():

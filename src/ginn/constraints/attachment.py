@@ -7,30 +7,24 @@ just as well by a shape on the far side of it as by one that carries the load. S
 :func:`ginn.problems.structural.held_nodes` (the nodes of every load, and of every support placed
 on interfaces) must touch a solid element of E.
 
-The grids: a node is judged on two grids, the default element grid (the compliance's own, unless
-``structural.cells`` sets another) and the report's (the default grid refined twice), and must be
-held on both. The report's grid, whose element centres lie half as far from a node, catches a shape
-rounded off at a pad's end: on the default grid alone two of the 16 cantilever shapes held its
-elements with the field at ``-h / 4`` and left 4 of the report grid's 26 pad nodes on void. The
-default grid catches a pad backed by a skin thinner than half its element: on the report's grid
-alone 11 of the 16 shapes of a cantilever run held a pad by a wall about 0.006 thick between the
-pad and a small hole behind it, so that the shapes thresholded on the default grid (as an
-independent solver of that resolution would fill them) left pad nodes on void, with compliances
-up to 150 times SIMP's (``python benchmarks/structural.py grids RUN``, ``docs/structural.md``).
+Loss: over the held nodes and the shapes, the mean of ``relu(m + w / 2) / w``, ``m`` the smallest
+field value at the centres of the node's elements in E and ``w`` the step width of the
+compliance's continuation (:mod:`ginn.constraints.compliance`) on this grid: from half the design
+region's depth geometrically down to half an element side by half the run, then zero once one of
+the elements is solid by a quarter element. Early on, while the wide step lets the compliance
+itself reach the loads, the term pushes as gently as the step is wide; with the final width from
+the first step it decided the half MBB beam's topology early (seed 0: compliance 164.3 against
+147.0 without the term). The nodes and elements are those of the verdict's
+grid (below), so the term asks for what the verdict judges: on the training grid, whose element
+centres lie twice as far from a node, a shape rounded off at a pad's end held the training grid's
+elements and left the end nodes of the report grid on void (``docs/structural.md``). With the sharp
+step of the late run the compliance has no gradient at an element several elements from the
+boundary, so without the term a generative model kept shapes whose boundary met a load pad from
+outside the domain.
 
-Loss: over the held nodes of both grids and the shapes, the mean of ``relu(m + w / 2) / w``, ``m``
-the smallest field value at the centres of the node's elements in E and ``w`` the step width of the
-compliance's continuation (:mod:`ginn.constraints.compliance`) on the node's grid: from half the
-design region's depth geometrically down to half an element side by half the run, then zero once
-one of the elements is solid by a quarter element. Early on, while the wide step lets the
-compliance itself reach the loads, the term pushes as gently as the step is wide; with the final
-width from the first step it decided the half MBB beam's topology early (seed 0: compliance 164.3
-against 147.0 without the term). With the sharp step of the late run the compliance has no
-gradient at an element several elements from the boundary, so without the term a generative model
-kept shapes whose boundary met a load pad from outside the domain.
-
-Verdict (``attachment``): the share of the held nodes of both grids that no solid element
-(``f <= 0`` at its centre) of E touches, ``unheld_nodes``, must be 0.
+Verdict (``attachment``): on the report's grid (the default element grid refined twice), the
+share of the held nodes that no solid element (``f <= 0`` at its centre) of E touches,
+``unheld_nodes``, must be 0.
 """
 
 from __future__ import annotations
@@ -42,55 +36,43 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from ..physics.grid import ElementGrid
-from ..problems.derived import smallest_feature
 from ..problems.problem import Problem
-from ..problems.structural import held_elements, structural_grid, void_elements
+from ..problems.structural import held_elements, void_elements
 from .base import Constraint, Setting, Stage
 from .batch import Batch
-from .compliance import continuation, narrowed, solid_elements, start_width
+from .compliance import continuation, narrowed, report_grid, solid_elements, start_width
 from .verdict import Verdict, Violation, number_text
 
-__all__ = ["Attachment", "AttachmentVerdict", "POINTS", "attachment_grids"]
+__all__ = ["Attachment", "AttachmentVerdict", "POINTS"]
 
 #: the key of the field values at the held nodes' element centres in a step
 #: (:meth:`ginn.constraints.batch.Batch.field_at`)
 POINTS = "attachment"
 
 
-def attachment_grids(problem: Problem) -> tuple[ElementGrid, ElementGrid]:
-    """The grids the held nodes are judged on: the default element grid and the report's (the
-    default grid refined twice)."""
-    base = structural_grid(problem, 0, smallest_feature(problem))
-    return base, base.refined(2)
-
-
 class AttachmentVerdict(Verdict):
-    """Every held node touches the thresholded shape on both grids (module docstring)."""
+    """Every held node touches the thresholded shape on the report's grid (module docstring)."""
 
     name = "attachment"
 
     def __init__(self, problem: Problem):
         super().__init__(problem)
         self.metrics = ("unheld_nodes",)
-        self._grids: list | None = None
+        self._grid: tuple | None = None
 
-    def grids(self) -> list[tuple]:
-        """``(grid, void, held)`` of each of :func:`attachment_grids`, built at the first use."""
-        if self._grids is None:
-            p = self.problem
-            self._grids = [(g, void_elements(p, g), held_elements(p, g)) for g in attachment_grids(p)]
-        return self._grids
+    def grid(self) -> tuple:
+        """``(grid, void, held)`` of the report's grid, built at the first use."""
+        if self._grid is None:
+            grid = report_grid(self.problem)
+            self._grid = (grid, void_elements(self.problem, grid), held_elements(self.problem, grid))
+        return self._grid
 
     def measure(self, shape, context, field, z) -> dict[str, Any]:
-        unheld, total = 0, 0
-        for grid, void, held in self.grids():
-            if held.shape[0] == 0:
-                continue
-            solid = np.append(solid_elements(field, z, grid, void), False)  # index -1: no element
-            unheld += int((~solid[held].any(axis=1)).sum())
-            total += held.shape[0]
-        return {"unheld_nodes": float(unheld / total) if total else None}
+        grid, void, held = self.grid()
+        if held.shape[0] == 0:
+            return {"unheld_nodes": None}
+        solid = np.append(solid_elements(field, z, grid, void), False)  # index -1: no element
+        return {"unheld_nodes": float(1.0 - solid[held].any(axis=1).mean())}
 
     def violation(self, metrics: Mapping) -> Violation | None:
         v = metrics.get("unheld_nodes")
@@ -117,30 +99,19 @@ class Attachment(Constraint):
     def __init__(self, setting: Setting):
         super().__init__(setting)
         p, dev = setting.problem, setting.device
-        points, elements, present, self.grid_of = [], [], [], []
-        self.start_widths, self.final_widths = [], []
-        n_points = 0
-        for k, grid in enumerate(attachment_grids(p)):
-            held = held_elements(p, grid)  # (n_held, 2^d), -1: none
-            used = np.unique(held[held >= 0])
-            points.append(grid.centres[used])
-            elements.append(n_points + np.searchsorted(used, np.maximum(held, 0)))
-            present.append(held >= 0)
-            self.grid_of += [k] * held.shape[0]
-            n_points += used.size
-            self.final_widths.append(0.5 * float(grid.h.min()))
-            self.start_widths.append(start_width(p, grid))
-        self.points = torch.as_tensor(np.concatenate(points), dtype=setting.dtype, device=dev)  # (n_used, d)
-        self.elements = torch.as_tensor(np.concatenate(elements), device=dev)  # (n_held, 2^d) into points
-        self.present = torch.as_tensor(np.concatenate(present), device=dev)
-        self.grid_of = torch.as_tensor(self.grid_of, device=dev)  # (n_held,) the node's grid
+        grid = report_grid(p)
+        held = held_elements(p, grid)  # (n_held, 2^d), -1: none
+        used = np.unique(held[held >= 0])
+        self.points = torch.as_tensor(grid.centres[used], dtype=setting.dtype, device=dev)  # (n_used, d)
+        self.elements = torch.as_tensor(np.searchsorted(used, np.maximum(held, 0)), device=dev)  # into points
+        self.present = torch.as_tensor(held >= 0, device=dev)
+        self.final_width = 0.5 * float(grid.h.min())
+        self.start_width = start_width(p, grid)
         self._verdict = AttachmentVerdict(p)
 
-    def width(self, step: int, grid: int = 1) -> float:
-        """``w`` at iteration ``step`` on attachment grid ``grid`` (0: the default, 1: the report's;
-        module docstring)."""
-        a = continuation(step, self.setting.cfg.training.iterations)
-        return narrowed(self.start_widths[grid], self.final_widths[grid], a)
+    def width(self, step: int) -> float:
+        """``w`` at iteration ``step`` (module docstring)."""
+        return narrowed(self.start_width, self.final_width, continuation(step, self.setting.cfg.training.iterations))
 
     @property
     def verdict(self) -> AttachmentVerdict:
@@ -151,7 +122,6 @@ class Attachment(Constraint):
             return None
         f = batch.field_at(POINTS, self.points)  # (S, n_used)
         around = f[:, self.elements]  # (S, n_held, 2^d)
-        m = torch.where(self.present, around, torch.full_like(around, torch.inf)).amin(dim=-1)  # (S, n_held)
-        w = torch.tensor([self.width(batch.step, k) for k in range(len(self.final_widths))],
-                         dtype=m.dtype, device=m.device)[self.grid_of]
-        return (torch.relu(m + 0.5 * w) / w).mean()
+        m = torch.where(self.present, around, torch.full_like(around, torch.inf)).amin(dim=-1)
+        w = self.width(batch.step)
+        return torch.relu(m + 0.5 * w).mean() / w
