@@ -23,7 +23,7 @@ fractions and compliances from its ``metrics.json`` beside the SIMP reference of
 (:func:`ginn.problems.structural.simp_reference`) and their ratio.
 
 ``grids RUN`` (a 2D structural run, after ``ginn train``, which exports the shapes) reads the
-shapes' exported contours (``shapes/*.json``), not the network, fills each grid's elements whose
+shapes' exported contours (``shapes/shape*.json``), not the network, fills each grid's elements whose
 centre lies inside them (even-odd: outlines and holes), and solves every shape and the SIMP
 reference's thresholded design (each grid element takes the value of the default-grid element
 under its centre) on grids of ``--cells`` elements along the longest side, nested in the default
@@ -204,9 +204,9 @@ def resampled(values: np.ndarray, source: ElementGrid, grid: ElementGrid) -> np.
 
 def run_on_grids(run: Path, cells: list[int]) -> None:
     problem = load_spec(run / "problem.yaml").build()
-    files = sorted((run / "shapes").glob("shape_*.json"))
+    files = sorted((run / "shapes").glob("shape*.json"))
     if problem.dim != 2 or not files:
-        raise SystemExit(f"{run}: needs a 2D structural run with exported shapes (shapes/shape_*.json)")
+        raise SystemExit(f"{run}: needs a 2D structural run with exported shapes (shapes/shape*.json)")
     shapes = [[np.asarray(c) for c in json.loads(f.read_text())["contours"]] for f in files]
     ref = simp_reference(problem)
     base = structural_grid(problem, 0, smallest_feature(problem))
