@@ -27,8 +27,9 @@ shapes' exported contours (``shapes/shape*.json``), not the network, fills each 
 centre lies inside them (even-odd: outlines and holes), and solves every shape and the SIMP
 reference's thresholded design (each grid element takes the value of the default-grid element
 under its centre) on grids of ``--cells`` elements along the longest side, nested in the default
-grid or not. It prints, per grid, SIMP's compliance, the shapes' compliances, their ratios to SIMP's
-and their volume fractions: whether the report's numbers hold on grids other than its own.
+grid or not. It prints, per grid, SIMP's compliance, the shapes' compliances, their ratios to SIMP's,
+their volume fractions and how many leave a node of a load or interface support on void: whether
+the report's numbers hold on grids other than its own.
 """
 
 from __future__ import annotations
@@ -36,6 +37,7 @@ from __future__ import annotations
 import argparse
 import json
 import statistics
+import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -203,10 +205,14 @@ def resampled(values: np.ndarray, source: ElementGrid, grid: ElementGrid) -> np.
 
 
 def run_on_grids(run: Path, cells: list[int]) -> None:
-    problem = load_spec(run / "problem.yaml").build()
     files = sorted((run / "shapes").glob("shape*.json"))
-    if problem.dim != 2 or not files:
-        raise SystemExit(f"{run}: needs a 2D structural run with exported shapes (shapes/shape*.json)")
+    if not (run / "problem.yaml").is_file() or not files:
+        print(f"{run}: needs a run directory with problem.yaml and exported shapes (shapes/shape*.json)", file=sys.stderr)
+        raise SystemExit(2)
+    problem = load_spec(run / "problem.yaml").build()
+    if problem.dim != 2 or problem.physics is None:
+        print(f"{run}: needs a 2D structural run (problem {problem.name})", file=sys.stderr)
+        raise SystemExit(2)
     shapes = [[np.asarray(c) for c in json.loads(f.read_text())["contours"]] for f in files]
     ref = simp_reference(problem)
     base = structural_grid(problem, 0, smallest_feature(problem))
