@@ -215,7 +215,8 @@ def run_on_grids(run: Path, cells: list[int]) -> None:
         raise SystemExit(2)
     shapes = [[np.asarray(c) for c in json.loads(f.read_text())["contours"]] for f in files]
     ref = simp_reference(problem)
-    base = structural_grid(problem, 0, smallest_feature(problem))
+    smallest = smallest_feature(problem)
+    base = structural_grid(problem, 0, smallest)
     report = [s.get("compliance") for s in json.loads((run / "metrics.json").read_text())["shapes"]] \
         if (run / "metrics.json").exists() else []
     print(f"{len(shapes)} shapes from {run / 'shapes'}; default grid {'x'.join(map(str, base.shape))}")
@@ -227,7 +228,7 @@ def run_on_grids(run: Path, cells: list[int]) -> None:
     E = float(problem.physics.youngs_modulus)
     for n in cells:
         t = time.perf_counter()
-        grid = structural_grid(problem, n, smallest_feature(problem))
+        grid = structural_grid(problem, n, smallest)
         solver, w = structural_solver(problem, grid)
         void = void_elements(problem, grid)
         solid = np.stack([resampled(ref.solid, base, grid)] + [contour_mask(c, grid) for c in shapes]) & ~void
