@@ -11,7 +11,15 @@ from ginn import runs
 from ginn.cli import main
 from ginn.constraints.attachment import Attachment, AttachmentVerdict
 from ginn.constraints.base import Setting
-from ginn.constraints.compliance import START_PENALTY, START_WIDTH, Compliance, ComplianceReport, covered, volume_margin
+from ginn.constraints.compliance import (
+    START_PENALTY,
+    START_WIDTH,
+    Compliance,
+    ComplianceReport,
+    covered,
+    solid_elements,
+    volume_margin,
+)
 from ginn.errors import SpecError
 from ginn.eval.feasibility import FeasibilityCheck
 from ginn.physics import ElementGrid
@@ -284,9 +292,11 @@ def test_attachment_holds_the_load_pads_not_the_clamped_wall():
     """The cantilever's pads at x = 1.5, y in [0.1, 0.2] and [0.8, 0.9]: 7 nodes each on the
     90 x 60 grid (spacing 1/60, reach half of it), each with 2 elements in E; the clamped wall (a
     region) is not held. The term reads the report's grid (twice as fine: 13 nodes a pad) as its
-    verdict does. Loss ``relu(m + w/2) / w``, ``w`` from START_WIDTH times the depth (the report
+    verdict does, at the centres of the node's report elements and at the centres of the default
+    elements with a corner at the node (``h`` and ``2 h`` from the pad, ``h`` the report's side).
+    Loss ``relu(m + w/2) / w`` over both, ``w`` from START_WIDTH times the depth (the report
     grid's: 0.5 less half its element) to ``h / 2``; the verdict's share of nodes off the
-    thresholded shape."""
+    thresholded shape at either depth."""
     setting = _setting("cantilever", cells=0)
     p = setting.problem
     grid = structural_grid(p)
@@ -303,20 +313,26 @@ def test_attachment_holds_the_load_pads_not_the_clamped_wall():
     n = setting.cfg.training.iterations  # the step width follows the compliance's continuation
     assert term.width(0) == pytest.approx(START_WIDTH * (0.5 - h / 2)) and term.width(n // 2) == pytest.approx(h / 2)
     assert term.width(n // 4) == pytest.approx(np.sqrt(term.width(0) * h / 2), rel=1e-9)
-    assert term.elements.shape == (26, 4) and int(term.present.sum()) == 52 and term.points.shape == (28, 2)
-    assert np.allclose(term.points[:, 0], 1.5 - h / 2)  # the report grid's centres by the pads
+    # 28 report centres, then 4 corners of a default element per node, 2 of them in the domain
+    assert term.elements.shape == (2, 26, 4) and int(term.present.sum()) == 104 and term.points.shape == (28 + 104, 2)
+    assert np.allclose(term.points[:28, 0], 1.5 - h / 2)  # the report grid's centres by the pads
+    corners = term.points[term.elements[1][term.present[1]]]
+    assert np.allclose(corners[:, 0], 1.5 - h) and int(term.present[1].sum()) == 52
     xc = term.points
-    loss = term.loss(_Field((xc[:, 0] - 1.5 + h)[None]))  # solid up to one element short: m = h / 2
-    assert float(loss) == pytest.approx((h / 2 + h / 4) / (h / 2), rel=1e-9)
+    # solid up to one report element short: m = h / 2 at the report's centres, 0 at the corners
+    loss = term.loss(_Field((xc[:, 0] - 1.5 + h)[None]))
+    assert float(loss) == pytest.approx(((h / 2 + h / 4) + (0 + h / 4)) / 2 / (h / 2), rel=1e-9)
     assert float(term.loss(_Field((xc[:, 0] - 1.6)[None]))) == 0.0
     low = term.loss(_Field(torch.where(xc[:, 1] < 0.5, xc[:, 0] - 1.6, xc[:, 0] - 1.5 + h)[None]))
     assert float(low) == pytest.approx(0.5 * float(loss), rel=1e-9)  # one pad held of two
-    w0 = term.width(0)  # at the start the same shape costs (h / 2 + w0 / 2) / w0
+    w0 = term.width(0)  # at the start the same shape costs ((h / 2 + w0 / 2) + w0 / 2) / 2 / w0
     early = term.loss(_Field((xc[:, 0] - 1.5 + h)[None], step=0))
-    assert float(early) == pytest.approx((h / 2 + w0 / 2) / w0, rel=1e-9)
-    # a shape that stops a quarter of a pad short of its lower end: 3 of its 13 nodes unheld
+    assert float(early) == pytest.approx((h / 2 + w0) / 2 / w0, rel=1e-9)
+    # a shape that stops a quarter of a pad short of its lower end (y < 0.125): 3 of its 13 nodes
+    # (y = 0.1, 0.1083, 0.1167) short at the report's centres, 2 at the corners (y -+ h: the
+    # third node's upper corner lies at 0.125, in the solid)
     short = term.loss(_Field(torch.where(xc[:, 1] < 0.125, xc[:, 0] - 1.5 + h, xc[:, 0] - 1.6)[None]))
-    assert float(short) == pytest.approx(3 / 26 * (h / 2 + h / 4) / (h / 2), rel=1e-9)
+    assert float(short) == pytest.approx((3 * (h / 2 + h / 4) + 2 * (0 + h / 4)) / 52 / (h / 2), rel=1e-9)
     v = AttachmentVerdict(p)
     m = v.measure(None, None, lambda x, z=None: x[:, 0] - 1.6, None)
     assert m == {"unheld_nodes": 0.0} and v.violation(m) is None and v.ratio(m) == 0.0
@@ -325,6 +341,30 @@ def test_attachment_holds_the_load_pads_not_the_clamped_wall():
     assert v.violation(m).value == pytest.approx(0.5) and "0.5 of the load" in v.describe(v.violation(m))
     m = v.measure(None, None, lambda x, z=None: torch.where(x[:, 1] < 0.125, x[:, 0] - 1.4, x[:, 0] - 1.6), None)
     assert m["unheld_nodes"] == pytest.approx(3 / 26)
+
+
+def test_attachment_sees_a_pad_held_by_a_wall_thinner_than_a_default_element():
+    """A hole behind the upper pad leaves it a wall 0.006 thick, a third of a default element
+    (1/60): the report grid's centres by the pad (h / 2 = 1/240 from it) lie in the wall, the
+    centres of a default grid (1/120 from it) in the hole, where a solver of the default grid's
+    resolution that fills elements by their centres leaves the pad's 7 nodes on void. The
+    verdict counts the pad's 13 report nodes unheld; the term's value is that of the corners'
+    depth alone."""
+    p = _setting("cantilever", cells=0).problem
+
+    def walled(x, z=None):  # solid everywhere but a hole 0.006 to 0.03 behind the upper pad
+        hole = (x[:, 0] > 1.47) & (x[:, 0] < 1.494) & (x[:, 1] > 0.78) & (x[:, 1] < 0.92)
+        return torch.where(hole, torch.ones_like(x[:, 0]), -torch.ones_like(x[:, 0]))
+
+    coarse = structural_grid(p)
+    solid = solid_elements(walled, None, coarse, np.zeros(coarse.n_elements, bool))
+    on_void = ~np.append(solid, False)[coarse.node_elements[held_nodes(p, coarse)]].any(axis=1)
+    assert int(on_void.sum()) == 7
+    fine = coarse.refined(2)
+    solid = solid_elements(walled, None, fine, np.zeros(fine.n_elements, bool))
+    assert np.append(solid, False)[held_elements(p, fine)].any(axis=1).all()  # the report grid alone holds it
+    m = AttachmentVerdict(p).measure(None, None, walled, None)
+    assert m["unheld_nodes"] == pytest.approx(13 / 26)
 
 
 def test_feasibility_checks_leave_the_compliance_report_to_eval():

@@ -5,25 +5,33 @@ compliance is a million times that of a held load; a support the shape never rea
 nothing. The interface term cannot see this: ``f = 0`` on an interface at the domain's edge is met
 just as well by a shape on the far side of it as by one that carries the load. So every node of
 :func:`ginn.problems.structural.held_nodes` (the nodes of every load, and of every support placed
-on interfaces) must touch a solid element of E.
+on interfaces) must touch a solid element of E, at two depths:
 
-Loss: over the held nodes and the shapes, the mean of ``relu(m + w / 2) / w``, ``m`` the smallest
-field value at the centres of the node's elements in E and ``w`` the step width of the
-compliance's continuation (:mod:`ginn.constraints.compliance`) on this grid: from half the design
-region's depth geometrically down to half an element side by half the run, then zero once one of
-the elements is solid by a quarter element. Early on, while the wide step lets the compliance
-itself reach the loads, the term pushes as gently as the step is wide; with the final width from
-the first step it decided the half MBB beam's topology early (seed 0: compliance 164.3 against
-147.0 without the term). The nodes and elements are those of the verdict's
-grid (below), so the term asks for what the verdict judges: on the training grid, whose element
-centres lie twice as far from a node, a shape rounded off at a pad's end held the training grid's
-elements and left the end nodes of the report grid on void (``docs/structural.md``). With the sharp
-step of the late run the compliance has no gradient at an element several elements from the
-boundary, so without the term a generative model kept shapes whose boundary met a load pad from
-outside the domain.
+* on the report's grid (the default element grid refined twice): one of the node's elements in E
+  solid at its centre, half a report element from the node along each axis. On the default grid
+  alone, whose centres lie twice as far from a node, a shape rounded off at a pad's end held the
+  default grid's elements and left the end nodes of the report grid on void;
+* at the default grid's depth: one of the elements of the default grid's size with a corner at
+  the node (:func:`ginn.problems.structural.held_corners`) that lie in E solid at its centre, half
+  a default element from the node along each axis. On the report's grid alone a pad backed by a
+  wall a third of a default element thick, in front of a small hole, was held, and a solver of
+  the default grid's resolution that fills its elements by their centres left the pad's nodes on
+  void (``docs/structural.md``, "On other grids"). A node with no such element in E is judged on
+  the report's grid alone.
 
-Verdict (``attachment``): on the report's grid (the default element grid refined twice), the
-share of the held nodes that no solid element (``f <= 0`` at its centre) of E touches,
+Loss: over the held nodes, both depths and the shapes, the mean of ``relu(m + w / 2) / w``, ``m``
+the smallest field value at the centres of the node's elements and ``w`` the step width of the
+compliance's continuation (:mod:`ginn.constraints.compliance`) on the report's grid: from half the
+design region's depth geometrically down to half a report element side by half the run, then zero
+once one of the elements is solid by a quarter of a report element. Early on, while the wide step
+lets the compliance itself reach the loads, the term pushes as gently as the step is wide; with the
+final width from the first step it decided the half MBB beam's topology early (seed 0: compliance
+164.3 against 147.0 without the term). With the sharp step of the late run the compliance has no
+gradient at an element several elements from the boundary, so without the term a generative model
+kept shapes whose boundary met a load pad from outside the domain.
+
+Verdict (``attachment``): the share of the held nodes of the report's grid that are not held at
+both depths (``f <= 0`` at the centre of one of the node's elements in E, on each),
 ``unheld_nodes``, must be 0.
 """
 
@@ -37,10 +45,10 @@ import torch
 from torch import Tensor
 
 from ..problems.problem import Problem
-from ..problems.structural import held_elements, void_elements
+from ..problems.structural import held_corners, held_elements, void_elements
 from .base import Constraint, Setting, Stage
 from .batch import Batch
-from .compliance import continuation, narrowed, report_grid, solid_elements, start_width
+from .compliance import continuation, narrowed, report_grid, solid_at, solid_elements, start_width
 from .verdict import Verdict, Violation, number_text
 
 __all__ = ["Attachment", "AttachmentVerdict", "POINTS"]
@@ -51,7 +59,8 @@ POINTS = "attachment"
 
 
 class AttachmentVerdict(Verdict):
-    """Every held node touches the thresholded shape on the report's grid (module docstring)."""
+    """Every held node touches the thresholded shape on the report's grid and at the depth of the
+    default grid (module docstring)."""
 
     name = "attachment"
 
@@ -61,18 +70,21 @@ class AttachmentVerdict(Verdict):
         self._grid: tuple | None = None
 
     def grid(self) -> tuple:
-        """``(grid, void, held)`` of the report's grid, built at the first use."""
+        """``(grid, void, held, corners, present)`` of the report's grid, built at the first use."""
         if self._grid is None:
             grid = report_grid(self.problem)
-            self._grid = (grid, void_elements(self.problem, grid), held_elements(self.problem, grid))
+            corners, present = held_corners(self.problem, grid, 2.0 * grid.h)
+            self._grid = (grid, void_elements(self.problem, grid), held_elements(self.problem, grid), corners, present)
         return self._grid
 
     def measure(self, shape, context, field, z) -> dict[str, Any]:
-        grid, void, held = self.grid()
+        grid, void, held, corners, present = self.grid()
         if held.shape[0] == 0:
             return {"unheld_nodes": None}
         solid = np.append(solid_elements(field, z, grid, void), False)  # index -1: no element
-        return {"unheld_nodes": float(1.0 - solid[held].any(axis=1).mean())}
+        deep = (solid_at(field, z, corners.reshape(-1, grid.dim)).reshape(present.shape) & present).any(axis=1)
+        deep |= ~present.any(axis=1)  # no corner in E: judged on the report's grid alone
+        return {"unheld_nodes": float(1.0 - (solid[held].any(axis=1) & deep).mean())}
 
     def violation(self, metrics: Mapping) -> Violation | None:
         v = metrics.get("unheld_nodes")
@@ -101,10 +113,16 @@ class Attachment(Constraint):
         p, dev = setting.problem, setting.device
         grid = report_grid(p)
         held = held_elements(p, grid)  # (n_held, 2^d), -1: none
+        corners, present = held_corners(p, grid, 2.0 * grid.h)  # (n_held, 2^d, d), (n_held, 2^d)
         used = np.unique(held[held >= 0])
-        self.points = torch.as_tensor(grid.centres[used], dtype=setting.dtype, device=dev)  # (n_used, d)
-        self.elements = torch.as_tensor(np.searchsorted(used, np.maximum(held, 0)), device=dev)  # into points
-        self.present = torch.as_tensor(held >= 0, device=dev)
+        points = np.concatenate([grid.centres[used], corners.reshape(-1, grid.dim)])
+        self.points = torch.as_tensor(points, dtype=setting.dtype, device=dev)  # (n_used + n_held 2^d, d)
+        near = np.searchsorted(used, np.maximum(held, 0))
+        deep = used.size + np.arange(corners.shape[0] * corners.shape[1]).reshape(present.shape)
+        none = ~present.any(axis=1)  # no corner in E: the node is judged on the report's grid alone
+        deep[none], present[none] = near[none], (held >= 0)[none]
+        self.elements = torch.as_tensor(np.stack([near, deep]), device=dev)  # (2, n_held, 2^d), into points
+        self.present = torch.as_tensor(np.stack([held >= 0, present]), device=dev)
         self.final_width = 0.5 * float(grid.h.min())
         self.start_width = start_width(p, grid)
         self._verdict = AttachmentVerdict(p)
@@ -118,10 +136,10 @@ class Attachment(Constraint):
         return self._verdict
 
     def loss(self, batch: Batch) -> Tensor | None:
-        if self.elements.shape[0] == 0:
+        if self.elements.shape[1] == 0:
             return None
-        f = batch.field_at(POINTS, self.points)  # (S, n_used)
-        around = f[:, self.elements]  # (S, n_held, 2^d)
+        f = batch.field_at(POINTS, self.points)  # (S, n_points)
+        around = f[:, self.elements]  # (S, 2, n_held, 2^d)
         m = torch.where(self.present, around, torch.full_like(around, torch.inf)).amin(dim=-1)
         w = self.width(batch.step)
         return torch.relu(m + 0.5 * w).mean() / w

@@ -60,7 +60,7 @@ from .base import Constraint, Setting, Stage
 from .batch import Batch
 from .verdict import Verdict, Violation
 
-__all__ = ["Compliance", "ComplianceReport", "report_grid", "solid_elements", "ELEMENTS", "CONTINUATION", "START_WIDTH",
+__all__ = ["Compliance", "ComplianceReport", "report_grid", "solid_elements", "solid_at", "ELEMENTS", "CONTINUATION", "START_WIDTH",
            "START_PENALTY", "continuation", "narrowed", "start_width", "covered",
            "volume_margin"]
 
@@ -125,15 +125,21 @@ def report_grid(problem: Problem) -> ElementGrid:
 def solid_elements(field, z, grid: ElementGrid, void: np.ndarray) -> np.ndarray:
     """``(n_elements,)`` bool: the elements of ``grid`` whose centre the shape of ``field`` at the
     latent ``z`` (None: a single shape) holds (``f <= 0``), less the ``void`` ones."""
+    return solid_at(field, z, grid.centres) & ~void
+
+
+def solid_at(field, z, points: np.ndarray) -> np.ndarray:
+    """``(n,)`` bool: which of ``points`` ``(n, dim)`` the shape of ``field`` at the latent ``z``
+    (None: a single shape) holds (``f <= 0``)."""
     dtype, device = field_dtype_device(field, z if isinstance(z, torch.Tensor) else None)
-    x = torch.as_tensor(grid.centres, dtype=dtype, device=device)
+    x = torch.as_tensor(points, dtype=dtype, device=device)
     out = []
     with torch.no_grad():
         for s in range(0, x.shape[0], 65536):
             xc = x[s: s + 65536]
             zc = None if z is None else torch.as_tensor(z, dtype=dtype, device=device).reshape(1, -1).expand(xc.shape[0], -1)
             out.append(fields.evaluate(field, xc, zc, grad=False, create_graph=False).f.reshape(-1).cpu())
-    return (torch.cat(out).numpy() <= 0) & ~void
+    return torch.cat(out).numpy() <= 0
 
 
 class ComplianceReport(Verdict):

@@ -13,7 +13,7 @@ The material model of the shapes' elements is SIMP's: modulus ``E (VOID + (1 - V
 for a density ``rho`` (the reference optimiser, the training term and the report share it).
 
 Public names: :func:`structural_solver`, :func:`structural_grid`, :func:`couple`, :func:`design_depth`, :func:`void_elements`,
-:func:`held_nodes`, :func:`held_elements`,
+:func:`held_nodes`, :func:`held_elements`, :func:`held_corners`, :func:`void_at`,
 :func:`simp_reference`, :func:`upsample`, :class:`Reference`, :data:`CELLS`, :data:`VOID`,
 :data:`PENALTY`.
 """
@@ -34,7 +34,7 @@ from .derived import smallest_feature
 from .problem import Problem
 
 __all__ = ["structural_solver", "structural_grid", "couple", "design_depth", "void_elements", "held_nodes",
-           "held_elements", "simp_reference",
+           "held_elements", "held_corners", "void_at", "simp_reference",
            "upsample", "Reference", "CELLS", "VOID", "PENALTY"]
 
 #: the ersatz material: the modulus of void relative to the solid's
@@ -112,22 +112,47 @@ def held_nodes(problem: Problem, grid: ElementGrid) -> np.ndarray:
 def held_elements(problem: Problem, grid: ElementGrid) -> np.ndarray:
     """``(n_held, 2^dim)``: for each node of :func:`held_nodes` with an element of E around it, the
     elements of E around it (``-1``: none in that slot). A node is held when one of them is solid."""
-    around = grid.node_elements[held_nodes(problem, grid)]
+    return _held(problem, grid)[1]
+
+
+def held_corners(problem: Problem, grid: ElementGrid, spacing: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The centres of the elements of side ``spacing`` ``(dim,)`` that have a corner at a node of
+    :func:`held_elements` (in its order): points ``(n_held, 2^dim, dim)`` and ``(n_held, 2^dim)``
+    bool, whether each lies in E and inside the domain. A grid of that spacing with a node there
+    holds the node when one of the present points is solid."""
+    nodes, _ = _held(problem, grid)
+    signs = np.array(np.meshgrid(*[(-1.0, 1.0)] * grid.dim, indexing="ij")).reshape(grid.dim, -1).T  # (2^d, d)
+    points = grid.nodes[nodes][:, None, :] + 0.5 * np.asarray(spacing, dtype=np.float64) * signs
+    flat = points.reshape(-1, grid.dim)
+    inside = np.all((flat > np.asarray(grid.lo)) & (flat < np.asarray(grid.hi)), axis=1) & ~void_at(problem, flat)
+    return points, inside.reshape(points.shape[:2])
+
+
+def _held(problem: Problem, grid: ElementGrid) -> tuple[np.ndarray, np.ndarray]:
+    """The nodes of :func:`held_nodes` with an element of E around them ``(n_held,)`` and those elements."""
+    nodes = np.flatnonzero(held_nodes(problem, grid))
+    around = grid.node_elements[nodes]
     void = np.append(void_elements(problem, grid), True)  # index -1: past the grid's edge
     around = np.where(void[around], -1, around)
-    return around[(around >= 0).any(axis=1)]
+    keep = (around >= 0).any(axis=1)
+    return nodes[keep], around[keep]
 
 
-def void_elements(problem: Problem, grid: ElementGrid) -> np.ndarray:
-    """``(n_elements,)`` bool: elements whose centre is outside E or inside an obstacle."""
-    c = torch.as_tensor(grid.centres, dtype=torch.float64)
-    void = np.zeros(grid.n_elements, bool)
+def void_at(problem: Problem, points: np.ndarray) -> np.ndarray:
+    """``(n,)`` bool: which of ``points`` ``(n, dim)`` lie outside E or inside an obstacle."""
+    c = torch.as_tensor(points, dtype=torch.float64)
+    void = np.zeros(c.shape[0], bool)
     with torch.no_grad():
         if problem.design_region is not None:
             void |= ~problem.design_region.contains(c).cpu().numpy()
         for o in problem.obstacles:
             void |= o.contains(c).cpu().numpy()
     return void
+
+
+def void_elements(problem: Problem, grid: ElementGrid) -> np.ndarray:
+    """``(n_elements,)`` bool: elements whose centre is outside E or inside an obstacle."""
+    return void_at(problem, grid.centres)
 
 
 def design_depth(problem: Problem, grid: ElementGrid) -> float:
