@@ -111,9 +111,9 @@ class Attachment(Constraint):
     def __init__(self, setting: Setting):
         super().__init__(setting)
         p, dev = setting.problem, setting.device
-        grid = report_grid(p)
-        held = held_elements(p, grid)  # (n_held, 2^d), -1: none
-        corners, present = held_corners(p, grid, 2.0 * grid.h)  # (n_held, 2^d, d), (n_held, 2^d)
+        self._verdict = AttachmentVerdict(p)
+        grid, _, held, corners, present = self._verdict.grid()  # held (n_held, 2^d), -1: none;
+        present = present.copy()  # corners (n_held, 2^d, d) and present (n_held, 2^d)
         used = np.unique(held[held >= 0])
         points = np.concatenate([grid.centres[used], corners.reshape(-1, grid.dim)])
         self.points = torch.as_tensor(points, dtype=setting.dtype, device=dev)  # (n_used + n_held 2^d, d)
@@ -125,7 +125,6 @@ class Attachment(Constraint):
         self.present = torch.as_tensor(np.stack([held >= 0, present]), device=dev)
         self.final_width = 0.5 * float(grid.h.min())
         self.start_width = start_width(p, grid)
-        self._verdict = AttachmentVerdict(p)
 
     def width(self, step: int) -> float:
         """``w`` at iteration ``step`` (module docstring)."""
