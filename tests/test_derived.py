@@ -182,8 +182,33 @@ def test_first_layer_frequency_follows_the_smallest_interface_and_the_tolerance(
         "tolerances": {"interface": tolerance}})
     assert smallest_feature(spec.build()) == pytest.approx(radius)
     assert spec.config().model.w0_first == pytest.approx(expected)
-    assert f"max(5, s / (2 a), sqrt(s / h)), s = 1, a = {radius:.4g}, h = {tolerance:.4g}" in " ".join(
-        spec.derived_notes(spec.config()))
+    assert (f"max(5, s / (2 a), sqrt(s / h)); at least s / (2 e) with physics, s = 1, a = {radius:.4g}, "
+            f"h = {tolerance:.4g})") in " ".join(spec.derived_notes(spec.config()))  # no e without physics
+
+
+@pytest.mark.parametrize("half, side, cells", [(0.05, 2.0, 90), (0.05, 1.0, 90), (0.01, 2.0, 200)])
+def test_a_structural_problem_draws_members_as_thin_as_its_elements(half, side, cells):
+    """With a ``physics`` block omega_0^1 is at least s / (2 e), ``e`` the element side of the
+    structural grid (the longest side ``L`` over its cells: ``cells / 4``; 90 cells, or ``2 L / a``
+    where that is more, so that the smallest interface, of half length ``a``, spans 4); the same
+    geometry without physics keeps max(5, s / (2 a), sqrt(s / h))."""
+    from ginn.problems.structural import structural_grid
+
+    a = half * side
+    geometry = {"dim": 2, "domain": {"lo": [0, 0], "hi": [side, side / 2]},
+                "interfaces": [{"type": "segment", "a": [side, 0.1 * side], "b": [side, 0.1 * side + 2 * a]}]}
+    physics = {"material": {"youngs_modulus": 1.0, "poisson_ratio": 0.3},
+               "supports": [{"region": {"type": "rectangle", "lo": [-1, -1], "hi": [0, side]}}],
+               "loads": [{"interface": 0, "force": [0.0, -1.0]}]}
+    bare = validate_spec({"name": "t", "geometry": geometry})
+    spec = validate_spec({"name": "t", "geometry": geometry, "physics": physics,
+                          "tolerances": {"volume_fraction": {"max": 0.5}}})
+    assert structural_grid(spec.build(), 0, a).shape[0] == cells
+    s = side / 2
+    # the interface tolerance is 5e-3 of the unit scale, which defaults to s
+    assert bare.config().model.w0_first == pytest.approx(max(5.0, s / (2 * a), math.sqrt(200.0)))
+    assert spec.config().model.w0_first == pytest.approx(cells / 4)
+    assert f"e = {side / cells:.4g}" in " ".join(spec.derived_notes(spec.config()))
 
 
 def test_every_derived_setting_is_a_rule_and_in_the_spec_reference():
