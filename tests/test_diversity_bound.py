@@ -121,14 +121,14 @@ def test_a_least_diversity_starts_the_set_alike():
     """With ``tolerances.diversity`` the first layer turns through ``d + 1`` radians over the latent
     range, so no first-layer neuron's phase moves by more than a radian from one end of Z to the
     other (its weights start within ``1 / fan_in``, ``fan_in = d + 1``); without, the paper's scale
-    of 1 turns it through ``r w`` (24.5 radians on the cantilever); a scale the user sets stays."""
+    of 1 turns it through ``r w`` (45 radians on the cantilever); a scale the user sets stays."""
     from ginn.models import build_model
 
     _, cfg = runs.resolve("cantilever", None)
     r, w = cfg.latents.high - cfg.latents.low, cfg.model.w0_first
     assert cfg.model.latent_turns == 3.0
     assert cfg.model.latent_scale == pytest.approx(3.0 / (r * w), rel=1e-12)
-    assert r * w == pytest.approx(24.49, abs=0.01)
+    assert r * w == pytest.approx(45.0, abs=0.01)
     torch.manual_seed(0)
     net = build_model(cfg.model, 2, 1).double()
     x = torch.rand(64, 2, dtype=torch.float64)

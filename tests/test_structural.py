@@ -432,9 +432,12 @@ def test_a_bar_in_tension_trains_to_the_straight_bar(tmp_path):
     0.2: the stiffest shape is the straight bar 0.2 high between them, compliance F^2 L / (E A) = 10.
     With the derived settings (2000 iterations, about 2 minutes on one thread) the shape is one
     piece, holds its volume within 0.01 of the bound, stays within 0.15 of the axis and its
-    compliance is within 5 % of the bar's. ``ginn train`` (seed 0) measured volume 0.1947,
-    compliance 10.26 (a straight bar of that volume: 10.27) and the farthest solid element 0.117
-    from the axis."""
+    compliance is within 5 % of the bar's. This run (seed 0, the tests' eager kernels) measured
+    volume 0.1956, compliance 10.31 (a straight bar of that volume: 10.23) and the farthest solid
+    element 0.117 from the axis. ``ginn train`` compiles its kernels, which round differently and
+    so take another path: seeds 0 to 2 ended at 10.79, 10.47 and 10.22 (the compliance grows with
+    the square of a ripple in the bar's section, so the last ripples go slowly; seed 0's bar keeps
+    some along its length)."""
     path = tmp_path / "bar.yaml"
     path.write_text(BAR_IN_TENSION)
     s, cfg = runs.resolve(str(path), None, {}, sets=["training.threads=1"])
