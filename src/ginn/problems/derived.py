@@ -27,9 +27,15 @@ from dataclasses import dataclass
 from typing import Any
 
 from ..geometry.base import Box
+from ..physics import ElementGrid
 from .problem import Problem
 
-__all__ = ["Geometry", "Rule", "RULES", "derived_defaults", "length_scale", "half_longest_side", "smallest_feature"]
+__all__ = ["Geometry", "Rule", "RULES", "derived_defaults", "length_scale", "half_longest_side", "smallest_feature",
+           "structural_cells", "CELLS"]
+
+#: a structural problem's elements along the domain's longest side, per dimension, unless the smallest
+#: interface needs more (:func:`structural_cells`)
+CELLS = {2: 90, 3: 36}
 
 
 def half_longest_side(domain: Box) -> float:
@@ -55,6 +61,17 @@ def smallest_feature(problem: Problem) -> float:
     return min(sizes) if sizes else length_scale(problem)
 
 
+def structural_cells(problem: Problem, smallest: float | None = None) -> int:
+    """The elements along the domain's longest side of ``problem``'s default structural grid:
+    :data:`CELLS` of its dimension, or more where the smallest interface ``smallest`` (a length)
+    would span fewer than 4 elements."""
+    cells = CELLS[problem.dim]
+    if smallest is not None and smallest > 0:
+        longest = 2.0 * half_longest_side(problem.domain)
+        cells = max(cells, math.ceil(4.0 * longest / (2.0 * smallest)))
+    return cells
+
+
 @dataclass(frozen=True)
 class Geometry:
     """What the formulas read of a problem.
@@ -63,8 +80,9 @@ class Geometry:
         s: the length scale (:func:`length_scale`); d: the dimension; a: the smallest interface
         (:func:`smallest_feature`); h: the interface tolerance in the problem's units;
         least_diversity: whether the tolerances bound the set's diversity from below; e: the longest
-            side of an element of the structural grid (:func:`ginn.problems.structural.structural_grid`)
-            of a problem with a ``physics`` block, else None.
+            side of an element of the default structural grid (:func:`structural_cells`,
+            :func:`ginn.problems.structural.structural_grid`) of a problem with a ``physics`` block,
+            else None.
     """
 
     s: float
@@ -78,8 +96,8 @@ class Geometry:
     def of(cls, problem: Problem) -> Geometry:
         e = None
         if problem.physics is not None:
-            from .structural import structural_grid  # structural imports this module
-            e = float(structural_grid(problem, 0, smallest_feature(problem)).h.max())
+            d = problem.domain
+            e = float(ElementGrid.over(d.lo, d.hi, structural_cells(problem, smallest_feature(problem))).h.max())
         return cls(length_scale(problem), problem.dim, smallest_feature(problem),
                    problem.tolerances.interface * problem.unit_scale, problem.tolerances.diversity is not None, e)
 

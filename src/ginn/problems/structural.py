@@ -20,7 +20,6 @@ Public names: :func:`structural_solver`, :func:`structural_grid`, :func:`couple`
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,7 +29,7 @@ from scipy.ndimage import distance_transform_edt
 from ..errors import SpecError
 from ..geometry.base import Interface, Region
 from ..physics import ElasticitySolver, ElementGrid, SimpResult, simp
-from .derived import smallest_feature
+from .derived import CELLS, smallest_feature, structural_cells
 from .problem import Problem
 
 __all__ = ["structural_solver", "structural_grid", "couple", "design_depth", "void_elements", "held_nodes",
@@ -42,20 +41,13 @@ VOID = 1e-6
 #: SIMP's penalty exponent: grey elements carry little
 PENALTY = 3.0
 
-#: elements along the domain's longest side, per dimension, unless the smallest interface needs more
-CELLS = {2: 90, 3: 36}
-
-
 def structural_grid(problem: Problem, cells: int = 0, smallest: float | None = None) -> ElementGrid:
     """The element grid of ``problem``: ``cells`` elements along the domain's longest side (0: the
     default, :data:`CELLS` of the dimension, or more where the smallest interface ``smallest`` (a
     length) would span fewer than 4 elements), elements as close to squares/cubes as the box allows."""
     d = problem.domain
-    longest = max(h - lo for lo, h in zip(d.lo, d.hi))
     if cells <= 0:
-        cells = CELLS[problem.dim]
-        if smallest is not None and smallest > 0:
-            cells = max(cells, math.ceil(4.0 * longest / (2.0 * smallest)))
+        cells = structural_cells(problem, smallest)
     return ElementGrid.over(d.lo, d.hi, cells)
 
 
