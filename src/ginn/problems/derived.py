@@ -102,7 +102,8 @@ class Geometry:
                    problem.tolerances.interface * problem.unit_scale, problem.tolerances.diversity is not None, e)
 
     def given(self, names: str) -> str:
-        """``s = 1, h = 0.005``: the quantities ``names`` (letters of ``sah``) of this problem."""
+        """``s = 1, h = 0.005``: the quantities ``names`` (letters of ``sahe``) of this problem, but
+        those it lacks (``e`` without physics)."""
         return ", ".join(f"{n} = {getattr(self, n):.4g}" for n in names if getattr(self, n) is not None)
 
 
