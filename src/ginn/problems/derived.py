@@ -94,11 +94,12 @@ class Geometry:
 
     @classmethod
     def of(cls, problem: Problem) -> Geometry:
+        a = smallest_feature(problem)
         e = None
         if problem.physics is not None:
             d = problem.domain
-            e = float(ElementGrid.over(d.lo, d.hi, structural_cells(problem, smallest_feature(problem))).h.max())
-        return cls(length_scale(problem), problem.dim, smallest_feature(problem),
+            e = float(ElementGrid.over(d.lo, d.hi, structural_cells(problem, a)).h.max())
+        return cls(length_scale(problem), problem.dim, a,
                    problem.tolerances.interface * problem.unit_scale, problem.tolerances.diversity is not None, e)
 
     def given(self, names: str) -> str:

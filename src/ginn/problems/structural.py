@@ -41,10 +41,11 @@ VOID = 1e-6
 #: SIMP's penalty exponent: grey elements carry little
 PENALTY = 3.0
 
+
 def structural_grid(problem: Problem, cells: int = 0, smallest: float | None = None) -> ElementGrid:
     """The element grid of ``problem``: ``cells`` elements along the domain's longest side (0: the
-    default, :data:`CELLS` of the dimension, or more where the smallest interface ``smallest`` (a
-    length) would span fewer than 4 elements), elements as close to squares/cubes as the box allows."""
+    default, :func:`~ginn.problems.derived.structural_cells` for the smallest interface ``smallest``,
+    a length), elements as close to squares/cubes as the box allows."""
     d = problem.domain
     if cells <= 0:
         cells = structural_cells(problem, smallest)
