@@ -14,9 +14,13 @@ volume fraction and the seconds.
 
 ``solver`` times solves of one grey-free solid/void design (void modulus 1e-6) with each method on
 2D and 3D grids, a batch of 8 shapes solved by CG in one call against the same 8 one by one, and
-(with more than one torch thread) the direct method's 16 factorisations of a 90 x 60 batch on all
-threads against one, and its factoriser (QDLDL) against SciPy's SuperLU on the same batch; the
-configurations take turns block by block and the script prints medians and ratios.
+the 2D direct method's factoriser (LAPACK's band Cholesky, the shapes side by side on torch's
+threads, each on one BLAS thread) on the 16 shapes of a 90 x 60 batch against SciPy's SuperLU and
+QDLDL (``pip install qdldl``: the sparse ``L D L^T`` with an approximate-minimum-degree ordering,
+its symbolic analysis reused; where it is installed), both on torch's threads, and (with more than
+one torch thread) against the band's shapes one after another on one BLAS thread and on as many
+BLAS threads as torch's; the configurations take turns block by block and the script prints
+medians and ratios.
 
 ``mbb RUN`` (any structural problem's run, after ``ginn eval RUN``) prints the run's volume
 fractions and compliances from its ``metrics.json`` beside the SIMP reference of its problem
@@ -40,6 +44,7 @@ import statistics
 import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -123,37 +128,62 @@ def run_solver(blocks: int) -> None:
             one.append(time.perf_counter() - t)
         print(f"{shape} CG, 8 shapes: batched {statistics.median(many):.3f} s, one by one {statistics.median(one):.3f} s, "
               f"one by one / batched {statistics.median(one) / statistics.median(many):.2f}")
-    threads = torch.get_num_threads()
-    if threads > 1:
-        s, E = cantilever_case((90, 60), "direct")
-        batch = torch.stack([E * (1 + 0.1 * k) for k in range(16)])
-        timed: dict[int, list[float]] = {1: [], threads: []}
-        for _ in range(blocks):
-            for n in timed:
-                torch.set_num_threads(n)
-                t = time.perf_counter()
-                s.solve(batch)
-                timed[n].append(time.perf_counter() - t)
-        torch.set_num_threads(threads)
-        med = {n: statistics.median(v) for n, v in timed.items()}
-        print(f"(90, 60) direct, 16 shapes: {threads} threads {med[threads]:.3f} s, 1 thread {med[1]:.3f} s, "
-              f"1 / {threads} threads {med[1] / med[threads]:.2f}")
     factorisers(blocks)
 
 
 def factorisers(blocks: int) -> None:
-    """The direct method's 2D factoriser, QDLDL with one refinement step (``ElasticitySolver``),
-    against SciPy's SuperLU (minimum-degree ordering of ``A^T + A``, the 3D factoriser), both on all
-    torch threads, for the 16 shapes of a 90 x 60 batch."""
+    """The 2D direct method's factoriser (``ElasticitySolver``: LAPACK's band Cholesky, the shapes
+    side by side on torch's threads on one BLAS thread each, one refinement step) against SuperLU
+    and QDLDL (on torch's threads, QDLDL where installed) and against the band's shapes one after
+    another, for the 16 shapes of a 90 x 60 batch."""
+    from scipy.linalg import lapack
+    from threadpoolctl import ThreadpoolController
+
     s, E = cantilever_case((90, 60), "direct")
     batch = torch.stack([E * (1 + 0.1 * k) for k in range(16)])
-    F = s.forces[:, s.free].T
+    F = np.ascontiguousarray(s.forces[:, s.free].T)
     threads = torch.get_num_threads()
+    order, slots, upper, w = s.band_layout()
+    blas = ThreadpoolController()
 
     def superlu(b: int) -> np.ndarray:
         return spla.splu(s.stiffness(batch[b].numpy()).tocsc(), permc_spec="MMD_AT_PLUS_A").solve(F)
 
-    runs = {"QDLDL": lambda: s.solve(batch), "SuperLU": lambda: list(pool.map(superlu, range(16)))}
+    def band(b: int) -> np.ndarray:
+        ab = np.zeros((w + 1, order.size), order="F")
+        ab.reshape(-1, order="F")[slots] = s.stiffness(batch[b].numpy()).data[upper]
+        cf, _ = lapack.dpbtrf(ab, lower=0, overwrite_ab=1)
+        x = np.empty_like(F)
+        x[order] = lapack.dpbtrs(cf, F[order], lower=0)[0]
+        return x
+
+    def band_in_turn(blas_threads: int) -> list:
+        with blas.limit(limits=blas_threads, user_api="blas"):
+            return [band(b) for b in range(16)]
+
+    runs = {"band": lambda: s.solve(batch), "SuperLU": lambda: list(pool.map(superlu, range(16)))}
+    try:
+        import qdldl
+    except ImportError:
+        print("(QDLDL is not installed: pip install qdldl to time it)")
+    else:
+        chunks = np.array_split(np.arange(16), threads)
+        ldl: dict[int, qdldl.Solver] = {}
+
+        def qdldl_chunk(k: int) -> None:  # chunk k of the shapes with QDLDL solver k (its symbolic analysis reused)
+            for b in chunks[k]:
+                K = s.stiffness(batch[b].numpy())
+                if k not in ldl:
+                    ldl[k] = qdldl.Solver(K.tocsc())
+                else:
+                    ldl[k].update(K.tocsc())
+                u = ldl[k].solve(F[:, 0])
+                u + ldl[k].solve(F[:, 0] - K @ u)
+
+        runs["QDLDL"] = lambda: list(pool.map(qdldl_chunk, range(threads)))
+    if threads > 1:
+        runs["band, one shape after another"] = partial(band_in_turn, 1)
+        runs[f"band, one shape after another on {threads} BLAS threads"] = partial(band_in_turn, threads)
     timed: dict[str, list[float]] = {k: [] for k in runs}
     with ThreadPoolExecutor(threads) as pool:
         for _ in range(blocks):
@@ -164,8 +194,9 @@ def factorisers(blocks: int) -> None:
         U = s.solve(batch)[:, 0][:, s.free].numpy()
         ref = np.stack([superlu(b)[:, 0] for b in range(16)])
     med = {k: statistics.median(v) for k, v in timed.items()}
-    print(f"(90, 60) direct, 16 shapes on {threads} thread(s): QDLDL {med['QDLDL']:.3f} s, SuperLU {med['SuperLU']:.3f} s, "
-          f"SuperLU / QDLDL {med['SuperLU'] / med['QDLDL']:.2f}; largest difference {np.abs(U - ref).max() / np.abs(ref).max():.1e}")
+    print(f"(90, 60) direct, 16 shapes, {threads} torch thread(s), half-bandwidth {w}: "
+          + ", ".join(f"{k} {v:.3f} s ({v / med['band']:.2f} x band)" for k, v in med.items())
+          + f"; band against SuperLU: largest difference {np.abs(U - ref).max() / np.abs(ref).max():.1e}")
 
 
 def run_against_simp(run: Path) -> None:

@@ -6,14 +6,15 @@ batch from its element moduli, solved for every load case.
 fixed degrees of freedom are removed (zero displacement there); a load case is a vector of nodal
 forces. Two methods solve ``K u = f``:
 
-* ``direct``: the assembled sparse matrix of the free degrees of freedom (one scatter of the element
-  matrices into a precomputed CSR pattern), factorised once per shape and solved for every load
-  case; the shapes of a batch on as many threads as torch uses (the factorisations release the
-  GIL; each shape's solve is the same on any count). In 2D the factoriser is QDLDL (``qdldl``:
-  ``L D L^T`` of the symmetric positive definite matrix, its approximate-minimum-degree ordering
-  and symbolic analysis done once per thread, since every shape has the grid's pattern, then one
-  step of iterative refinement); in 3D, where its fill is larger, SciPy's SuperLU (minimum-degree
-  ordering of ``A^T + A``);
+* ``direct``: the assembled matrix of the free degrees of freedom (one scatter of the element
+  matrices into a precomputed pattern), factorised once per shape and solved for every load case.
+  In 2D it is a band: the nodes numbered with the grid's shortest axis fastest, the matrix has
+  half-bandwidth at most ``2 n_short + 5`` and LAPACK's band Cholesky (``dpbtrf``/``dpbtrs``)
+  factorises it, followed by one step of iterative refinement; in 3D, where a band would be a
+  plane of nodes wide, SciPy's SuperLU (minimum-degree ordering of ``A^T + A``) factorises the
+  sparse matrix. The shapes of a batch run side by side on as many threads as torch uses (the
+  factorisations release the GIL), each on one BLAS thread, so that each shape's solve is the
+  same on any count;
 * ``cg``: matrix-free conjugate gradients in torch, preconditioned by the diagonal, every shape and
   load case of the batch in one set of tensor operations on the moduli's device, warm-started from
   the previous solve of a batch of the same size.
@@ -29,10 +30,11 @@ from __future__ import annotations
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
-import qdldl
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 import torch
+from scipy.linalg import lapack
+from threadpoolctl import ThreadpoolController
 
 from .elements import element_stiffness
 from .grid import ElementGrid
@@ -40,6 +42,8 @@ from .grid import ElementGrid
 __all__ = ["ElasticitySolver", "METHODS"]
 
 METHODS = ("auto", "direct", "cg")
+
+_BLAS = ThreadpoolController()  # each shape's factorisation runs on one BLAS thread (``ElasticitySolver.solve``)
 
 
 class ElasticitySolver:
@@ -75,7 +79,7 @@ class ElasticitySolver:
         self._pattern: tuple | None = None
         self._warm: dict = {}
         self._torch_cache: dict = {}
-        self._ldl: dict[int, qdldl.Solver] = {}  # the direct method's QDLDL solvers, one per thread
+        self._band: tuple | None = None
 
     @property
     def n_loads(self) -> int:
@@ -131,41 +135,81 @@ class ElasticitySolver:
             return self._solve_cg(E.to(torch.float64))
         En = E.to(torch.float64).cpu().numpy()
         U = np.zeros((En.shape[0], self.n_loads, self.grid.n_dofs))
-        F = self.forces[:, self.free]  # (L, nf)
+        F = np.ascontiguousarray(self.forces[:, self.free].T)  # (nf, L)
+        solve_one = self._band_solver(F) if self.grid.dim == 2 else self._sparse_solver(F)
 
-        workers = min(En.shape[0], torch.get_num_threads())
-        chunks = np.array_split(np.arange(En.shape[0]), workers)
+        def run(shapes: np.ndarray) -> None:
+            for b in shapes:
+                U[b][:, self.free] = solve_one(En[b]).T
 
-        def run(k: int) -> None:  # chunk k of the shapes, with QDLDL solver k
-            for b in chunks[k]:
-                if self.grid.dim == 3:
-                    lu = spla.splu(self.stiffness(En[b]).tocsc(), permc_spec="MMD_AT_PLUS_A")
-                    U[b][:, self.free] = lu.solve(np.ascontiguousarray(F.T)).T
-                    continue
-                ldl, K = self._factorised(k, En[b])
-                for c in range(self.n_loads):
-                    u = ldl.solve(F[c])
-                    U[b, c, self.free] = u + ldl.solve(F[c] - K @ u)  # one step of iterative refinement
-
-        if workers > 1:  # the factorisations release the GIL and run side by side
-            with ThreadPoolExecutor(workers) as pool:
-                list(pool.map(run, range(workers)))
-        else:
-            run(0)
+        # the shapes side by side on torch's threads (the factorisations release the GIL), each on
+        # one BLAS thread, so that a shape's solve is the same on any thread count
+        chunks = np.array_split(np.arange(En.shape[0]), min(En.shape[0], torch.get_num_threads()))
+        with _BLAS.limit(limits=1, user_api="blas"):
+            if len(chunks) > 1:
+                with ThreadPoolExecutor(len(chunks)) as pool:
+                    list(pool.map(run, chunks))
+            else:
+                run(chunks[0])
         return torch.from_numpy(U).to(E.device)
 
-    def _factorised(self, slot: int, moduli: np.ndarray) -> tuple[qdldl.Solver, sp.csr_matrix]:
-        """QDLDL solver ``slot`` holding the factorisation of the stiffness of ``moduli`` (its
-        symbolic analysis from the first matrix, kept for every later one: the pattern is the
-        grid's), and the stiffness."""
-        K = self.stiffness(moduli)
-        A = sp.csc_matrix((K.data, K.indices, K.indptr), shape=K.shape)  # K is symmetric: its CSR is its CSC
-        ldl = self._ldl.get(slot)
-        if ldl is None:
-            self._ldl[slot] = ldl = qdldl.Solver(A)
-        else:
-            ldl.update(A)
-        return ldl, K
+    def _sparse_solver(self, F: np.ndarray):
+        """``moduli (n_elements,) -> u (nf, L)``: SuperLU, the free-dof loads ``F`` ``(nf, L)``."""
+
+        def solve_one(moduli: np.ndarray) -> np.ndarray:
+            return spla.splu(self.stiffness(moduli).tocsc(), permc_spec="MMD_AT_PLUS_A").solve(F)
+
+        return solve_one
+
+    def band_layout(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+        """The 2D direct method's band: ``(order, slots, upper, w)``.
+
+        ``order`` ``(nf,)``: position ``i`` of the band holds the free degree of freedom
+        ``order[i]`` (an index into :attr:`free`), the nodes taken with the grid's axes from the
+        longest (slowest) to the shortest (fastest), so that two degrees of freedom of one element
+        are at most one row of nodes along the shortest axis apart. ``upper`` ``(n_upper,)``: the
+        entries of the CSR pattern of :meth:`stiffness` whose row comes at or before their column
+        in that order; ``slots`` ``(n_upper,)``: their flat indices into LAPACK's upper band storage
+        (``ab[w + i - j, j]``, ``(w + 1, nf)`` in Fortran order). ``w``: the half-bandwidth."""
+        if self._band is None:
+            g = self.grid
+            axes = sorted(range(g.dim), key=lambda a: -g.node_shape[a])  # slowest first
+            idx = np.indices(g.node_shape).reshape(g.dim, -1)
+            rank = np.empty(g.n_nodes, dtype=np.int64)
+            rank[np.lexsort(tuple(idx[a] for a in reversed(axes)))] = np.arange(g.n_nodes)  # lexsort: last key slowest
+            dof_rank = (g.dim * rank[:, None] + np.arange(g.dim)).reshape(-1)  # (n_dofs,)
+            order = np.argsort(dof_rank[self.free], kind="stable")
+            position = np.empty(order.size, dtype=np.int64)
+            position[order] = np.arange(order.size)
+            _, _, indices, indptr, _ = self._sparsity()
+            rows = position[np.repeat(np.arange(order.size), np.diff(indptr))]
+            cols = position[indices]
+            w = int(np.abs(rows - cols).max())
+            upper = np.flatnonzero(rows <= cols)
+            slots = (w + rows[upper] - cols[upper]) + (w + 1) * cols[upper]
+            self._band = (order, slots, upper, w)
+        return self._band
+
+    def _band_solver(self, F: np.ndarray):
+        """``moduli (n_elements,) -> u (nf, L)``: LAPACK's band Cholesky in the order of
+        :meth:`band_layout`, then one step of iterative refinement; ``F`` ``(nf, L)`` the free-dof
+        loads."""
+        order, slots, upper, w = self.band_layout()
+        Fb = F[order]
+
+        def solve_one(moduli: np.ndarray) -> np.ndarray:
+            K = self.stiffness(moduli)
+            ab = np.zeros((w + 1, order.size), order="F")
+            ab.reshape(-1, order="F")[slots] = K.data[upper]
+            cf, info = lapack.dpbtrf(ab, lower=0, overwrite_ab=1)
+            if info != 0:
+                raise RuntimeError(f"ElasticitySolver: the stiffness is not positive definite (LAPACK dpbtrf info {info})")
+            x = np.empty_like(F)
+            x[order] = lapack.dpbtrs(cf, Fb, lower=0)[0]
+            x[order] += lapack.dpbtrs(cf, (F - K @ x)[order], lower=0)[0]
+            return x
+
+        return solve_one
 
     def _torch_data(self, device: torch.device) -> tuple[torch.Tensor, ...]:
         key = str(device)
