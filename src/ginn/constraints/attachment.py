@@ -17,17 +17,10 @@ on interfaces) must touch a solid element of E, at three depths:
   wall a third of a default element thick, in front of a small hole, was held, and a solver of
   the default grid's resolution that fills its elements by their centres left the pad's nodes on
   void (``docs/structural.md``, "On other grids"). A node with no such element in E is judged on
-  the report's grid alone;
-* at the nodes themselves: every node that a grid with a quarter of the report element's side
-  puts on a load or an interface support near a held node
-  (:func:`ginn.problems.structural.held_points`) inside the shape. The elements of finer grids lie
-  closer to their nodes than either depth above: a shape rounded off at a pad's end a fraction of
-  a report element inside it held both depths and left the end node of a grid twice as fine as
-  the report's on void (compliance 2012 against 170; ``docs/structural.md``, "On other grids").
+  the report's grid alone.
 
-Loss: the mean over the three depths of the mean, over their nodes (points) and the shapes, of
-``relu(m + w / 2) / w``, ``m`` the smallest field value at the centres of the node's elements (the
-field at the point itself at the third depth) and ``w`` the step width of the
+Loss: over the held nodes, both depths and the shapes, the mean of ``relu(m + w / 2) / w``, ``m``
+the smallest field value at the centres of the node's elements and ``w`` the step width of the
 compliance's continuation (:mod:`ginn.constraints.compliance`) on the report's grid: from half the
 design region's depth geometrically down to half a report element side by half the run, then zero
 once one of the elements is solid by a quarter of a report element. Early on, while the wide step
@@ -38,8 +31,8 @@ gradient at an element several elements from the boundary, so without the term a
 kept shapes whose boundary met a load pad from outside the domain.
 
 Verdict (``attachment``): the share of the held nodes of the report's grid that are not held at
-every depth (``f <= 0`` at the centre of one of the node's elements in E at the first two, at each
-of the finer grid's points nearest to the node at the third), ``unheld_nodes``, must be 0.
+both depths (``f <= 0`` at the centre of one of the node's elements in E, on each),
+``unheld_nodes``, must be 0.
 """
 
 from __future__ import annotations
@@ -52,7 +45,7 @@ import torch
 from torch import Tensor
 
 from ..problems.problem import Problem
-from ..problems.structural import held_corners, held_elements, held_points, void_elements
+from ..problems.structural import held_corners, held_elements, void_elements
 from .base import Constraint, Setting, Stage
 from .batch import Batch
 from .compliance import continuation, narrowed, report_grid, solid_at, solid_elements, start_width
@@ -67,7 +60,7 @@ POINTS = "attachment"
 
 class AttachmentVerdict(Verdict):
     """Every held node touches the thresholded shape on the report's grid and at the depth of the
-    default grid, and the finer grid's points of its place lie inside the shape (module docstring)."""
+    default grid (module docstring)."""
 
     name = "attachment"
 
@@ -77,25 +70,21 @@ class AttachmentVerdict(Verdict):
         self._grid: tuple | None = None
 
     def grid(self) -> tuple:
-        """``(grid, void, held, corners, present, points, owner)`` of the report's grid, built at the
-        first use."""
+        """``(grid, void, held, corners, present)`` of the report's grid, built at the first use."""
         if self._grid is None:
             grid = report_grid(self.problem)
             corners, present = held_corners(self.problem, grid, 2.0 * grid.h)
-            points, owner = held_points(self.problem, grid)
-            self._grid = (grid, void_elements(self.problem, grid), held_elements(self.problem, grid), corners, present,
-                          points, owner)
+            self._grid = (grid, void_elements(self.problem, grid), held_elements(self.problem, grid), corners, present)
         return self._grid
 
     def measure(self, shape, context, field, z) -> dict[str, Any]:
-        grid, void, held, corners, present, points, owner = self.grid()
+        grid, void, held, corners, present = self.grid()
         if held.shape[0] == 0:
             return {"unheld_nodes": None}
         solid = np.append(solid_elements(field, z, grid, void), False)  # index -1: no element
         deep = (solid_at(field, z, corners.reshape(-1, grid.dim)).reshape(present.shape) & present).any(axis=1)
         deep |= ~present.any(axis=1)  # no corner in E: judged on the report's grid alone
-        outside = np.bincount(owner, weights=(~solid_at(field, z, points)).astype(float), minlength=held.shape[0]) > 0
-        return {"unheld_nodes": float(1.0 - (solid[held].any(axis=1) & deep & ~outside).mean())}
+        return {"unheld_nodes": float(1.0 - (solid[held].any(axis=1) & deep).mean())}
 
     def violation(self, metrics: Mapping) -> Violation | None:
         v = metrics.get("unheld_nodes")
@@ -123,12 +112,11 @@ class Attachment(Constraint):
         super().__init__(setting)
         p, dev = setting.problem, setting.device
         self._verdict = AttachmentVerdict(p)
-        grid, _, held, corners, present, fine, _ = self._verdict.grid()  # held (n_held, 2^d), -1: none;
-        present = present.copy()  # corners (n_held, 2^d, d) and present (n_held, 2^d); fine (n_fine, d)
+        grid, _, held, corners, present = self._verdict.grid()  # held (n_held, 2^d), -1: none;
+        present = present.copy()  # corners (n_held, 2^d, d) and present (n_held, 2^d)
         used = np.unique(held[held >= 0])
-        points = np.concatenate([grid.centres[used], corners.reshape(-1, grid.dim), fine])
-        self.points = torch.as_tensor(points, dtype=setting.dtype, device=dev)  # (n_used + n_held 2^d + n_fine, d)
-        self.fine = slice(points.shape[0] - fine.shape[0], points.shape[0])
+        points = np.concatenate([grid.centres[used], corners.reshape(-1, grid.dim)])
+        self.points = torch.as_tensor(points, dtype=setting.dtype, device=dev)  # (n_used + n_held 2^d, d)
         near = np.searchsorted(used, np.maximum(held, 0))
         deep = used.size + np.arange(corners.shape[0] * corners.shape[1]).reshape(present.shape)
         none = ~present.any(axis=1)  # no corner in E: the node is judged on the report's grid alone
@@ -153,7 +141,4 @@ class Attachment(Constraint):
         around = f[:, self.elements]  # (S, 2, n_held, 2^d)
         m = torch.where(self.present, around, torch.full_like(around, torch.inf)).amin(dim=-1)
         w = self.width(batch.step)
-        depths = torch.relu(m + 0.5 * w).mean(dim=(0, 2))  # (2,)
-        if self.fine.stop > self.fine.start:
-            depths = torch.cat([depths, torch.relu(f[:, self.fine] + 0.5 * w).mean()[None]])
-        return depths.mean() / w
+        return torch.relu(m + 0.5 * w).mean() / w

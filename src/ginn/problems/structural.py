@@ -13,7 +13,7 @@ The material model of the shapes' elements is SIMP's: modulus ``E (VOID + (1 - V
 for a density ``rho`` (the reference optimiser, the training term and the report share it).
 
 Public names: :func:`structural_solver`, :func:`structural_grid`, :func:`couple`, :func:`design_depth`, :func:`void_elements`,
-:func:`held_nodes`, :func:`held_elements`, :func:`held_corners`, :func:`held_points`, :func:`void_at`,
+:func:`held_nodes`, :func:`held_elements`, :func:`held_corners`, :func:`void_at`,
 :func:`simp_reference`, :func:`upsample`, :class:`Reference`, :data:`CELLS`, :data:`VOID`,
 :data:`PENALTY`.
 """
@@ -25,7 +25,6 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 from scipy.ndimage import distance_transform_edt
-from scipy.spatial import cKDTree
 
 from ..errors import SpecError
 from ..geometry.base import Interface, Region
@@ -34,7 +33,7 @@ from .derived import CELLS, smallest_feature, structural_cells
 from .problem import Problem
 
 __all__ = ["structural_solver", "structural_grid", "couple", "design_depth", "void_elements", "held_nodes",
-           "held_elements", "held_corners", "held_points", "void_at", "simp_reference",
+           "held_elements", "held_corners", "void_at", "simp_reference",
            "upsample", "Reference", "CELLS", "VOID", "PENALTY"]
 
 #: the ersatz material: the modulus of void relative to the solid's
@@ -90,17 +89,12 @@ def couple(x: np.ndarray, torque: tuple[float, ...]) -> np.ndarray:
 def held_nodes(problem: Problem, grid: ElementGrid) -> np.ndarray:
     """``(n_nodes,)`` bool: the nodes the shape must hold, those of every load and of every
     support placed on interfaces (a support on a region is a wall the shape may meet anywhere)."""
-    return _near_held(problem, grid.nodes, 0.5 * float(grid.h.max()))
-
-
-def _near_held(problem: Problem, points: np.ndarray, reach: float) -> np.ndarray:
-    """``(n,)`` bool: which of ``points`` ``(n, dim)`` lie within ``reach`` of a load's place or of an
-    interface support's."""
     ph = problem.physics
-    held = np.zeros(len(points), bool)
     if ph is None:
-        return held
-    x = torch.as_tensor(points, dtype=torch.float64)
+        return np.zeros(grid.n_nodes, bool)
+    x = torch.as_tensor(grid.nodes, dtype=torch.float64)
+    reach = 0.5 * float(grid.h.max())
+    held = np.zeros(grid.n_nodes, bool)
     places = [s.where for s in ph.supports if all(isinstance(w, Interface) for w in s.where)]
     places += [load.where for case in ph.load_cases for load in case.loads]
     for where in places:
@@ -125,26 +119,6 @@ def held_corners(problem: Problem, grid: ElementGrid, spacing: np.ndarray) -> tu
     flat = points.reshape(-1, grid.dim)
     inside = np.all((flat > np.asarray(grid.lo)) & (flat < np.asarray(grid.hi)), axis=1) & ~void_at(problem, flat)
     return points, inside.reshape(points.shape[:2])
-
-
-def held_points(problem: Problem, grid: ElementGrid, refine: int = 4) -> tuple[np.ndarray, np.ndarray]:
-    """The nodes that :func:`held_nodes` takes on ``grid`` refined ``refine`` times near the nodes of
-    :func:`held_elements`, ``(n, dim)``, and for each the nearest of those nodes (in their order)
-    ``(n,)``: the places of the loads and interface supports at a spacing finer than ``grid``'s,
-    their ends included. A grid of any resolution puts a load on nodes near its place; where the
-    shape leaves such a point outside, a fine enough grid leaves that node on void however the
-    coarser grids' elements fill."""
-    nodes, _ = _held(problem, grid)
-    if nodes.size == 0:
-        return np.zeros((0, grid.dim)), np.zeros(0, dtype=np.int64)
-    lo, step = np.asarray(grid.lo), grid.h / refine
-    at = np.rint((grid.nodes[nodes] - lo) / step).astype(np.int64)  # (n_held, d) on the fine grid
-    offsets = np.stack(np.meshgrid(*[np.arange(-refine, refine + 1)] * grid.dim, indexing="ij"), -1).reshape(-1, grid.dim)
-    cand = np.unique((at[:, None, :] + offsets[None]).reshape(-1, grid.dim), axis=0)
-    cand = cand[np.all((cand >= 0) & (cand <= refine * np.asarray(grid.shape)), axis=1)]
-    points = lo + cand * step
-    points = points[_near_held(problem, points, 0.5 * float(step.max()))]
-    return points, cKDTree(grid.nodes[nodes]).query(points)[1]
 
 
 def _held(problem: Problem, grid: ElementGrid) -> tuple[np.ndarray, np.ndarray]:
