@@ -17,10 +17,10 @@ volume fraction and the seconds.
 the 2D direct method's factoriser (LAPACK's band Cholesky, the shapes side by side on torch's
 threads, each on one BLAS thread) on the 16 shapes of a 90 x 60 batch against SciPy's SuperLU and
 QDLDL (``pip install qdldl``: the sparse ``L D L^T`` with an approximate-minimum-degree ordering,
-its symbolic analysis reused; where it is installed), both on torch's threads, and (with more than
-one torch thread) against the band's shapes one after another on one BLAS thread and on as many
-BLAS threads as torch's; the configurations take turns block by block and the script prints
-medians and ratios.
+its symbolic analysis reused; where it is installed, also one matrix on one thread from 90 x 30
+to 360 x 240 elements), both on torch's threads, and (with more than one torch thread) against
+the band's shapes one after another on one BLAS thread and on as many BLAS threads as torch's;
+the configurations take turns block by block and the script prints medians and ratios.
 
 ``mbb RUN`` (any structural problem's run, after ``ginn eval RUN``) prints the run's volume
 fractions and compliances from its ``metrics.json`` beside the SIMP reference of its problem
@@ -128,7 +128,42 @@ def run_solver(blocks: int) -> None:
             one.append(time.perf_counter() - t)
         print(f"{shape} CG, 8 shapes: batched {statistics.median(many):.3f} s, one by one {statistics.median(one):.3f} s, "
               f"one by one / batched {statistics.median(one) / statistics.median(many):.2f}")
+    band_sizes(blocks)
     factorisers(blocks)
+
+
+def band_sizes(blocks: int) -> None:
+    """One 2D matrix's direct solve (the band) against QDLDL's (its symbolic analysis reused, one
+    refinement step; where installed) from 90 x 30 to 360 x 240 elements, on one thread."""
+    try:
+        import qdldl
+    except ImportError:
+        return
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    for shape in ((90, 30), (90, 60), (180, 120), (360, 240)):
+        s, E = cantilever_case(shape, "direct")
+        En = E.numpy()
+        f = s.forces[0, s.free]
+        ldl = qdldl.Solver(s.stiffness(En).tocsc())
+
+        def by_qdldl() -> np.ndarray:
+            K = s.stiffness(En)
+            ldl.update(K.tocsc())
+            u = ldl.solve(f)
+            return u + ldl.solve(f - K @ u)
+
+        runs = {"band": lambda: s.solve(E), "QDLDL": by_qdldl}
+        timed: dict[str, list[float]] = {k: [] for k in runs}
+        for _ in range(blocks):
+            for k, fn in runs.items():
+                t = time.perf_counter()
+                fn()
+                timed[k].append(time.perf_counter() - t)
+        med = {k: statistics.median(v) for k, v in timed.items()}
+        print(f"{shape} one matrix, one thread: {s.free.size} unknowns, half-bandwidth {s.band_layout()[3]}; band {med['band']:.4f} s, "
+              f"QDLDL {med['QDLDL']:.4f} s, QDLDL / band {med['QDLDL'] / med['band']:.2f}")
+    torch.set_num_threads(threads)
 
 
 def factorisers(blocks: int) -> None:

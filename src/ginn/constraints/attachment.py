@@ -5,7 +5,7 @@ compliance is a million times that of a held load; a support the shape never rea
 nothing. The interface term cannot see this: ``f = 0`` on an interface at the domain's edge is met
 just as well by a shape on the far side of it as by one that carries the load. So every node of
 :func:`ginn.problems.structural.held_nodes` (the nodes of every load, and of every support placed
-on interfaces) must touch a solid element of E, at three depths:
+on interfaces) must touch a solid element of E, at two depths:
 
 * on the report's grid (the default element grid refined twice): one of the node's elements in E
   solid at its centre, half a report element from the node along each axis. On the default grid
