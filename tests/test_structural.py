@@ -292,11 +292,12 @@ def test_attachment_holds_the_load_pads_not_the_clamped_wall():
     """The cantilever's pads at x = 1.5, y in [0.1, 0.2] and [0.8, 0.9]: 7 nodes each on the
     90 x 60 grid (spacing 1/60, reach half of it), each with 2 elements in E; the clamped wall (a
     region) is not held. The term reads the report's grid (twice as fine: 13 nodes a pad) as its
-    verdict does, at the centres of the node's report elements and at the centres of the default
-    elements with a corner at the node (``h`` and ``2 h`` from the pad, ``h`` the report's side).
-    Loss ``relu(m + w/2) / w`` over both, ``w`` from START_WIDTH times the depth (the report
-    grid's: 0.5 less half its element) to ``h / 2``; the verdict's share of nodes off the
-    thresholded shape at either depth."""
+    verdict does, at the centres of the node's report elements and at the centres of the elements
+    of the default grid's size and of grids 2 and 4 times as fine as the report's with a corner at
+    the node (``h / 2``, ``h``, ``h / 4`` and ``h / 8`` from the pad, ``h`` the report's side).
+    Loss ``relu(m + a w/2) / w`` over the four (``a`` 1, 1, 1/2, 1/4), ``w`` from START_WIDTH
+    times the depth (the report grid's: 0.5 less half its element) to ``h / 2``; the verdict's
+    share of nodes off the thresholded shape at any depth."""
     setting = _setting("cantilever", cells=0)
     p = setting.problem
     grid = structural_grid(p)
@@ -313,26 +314,29 @@ def test_attachment_holds_the_load_pads_not_the_clamped_wall():
     n = setting.cfg.training.iterations  # the step width follows the compliance's continuation
     assert term.width(0) == pytest.approx(START_WIDTH * (0.5 - h / 2)) and term.width(n // 2) == pytest.approx(h / 2)
     assert term.width(n // 4) == pytest.approx(np.sqrt(term.width(0) * h / 2), rel=1e-9)
-    # 28 report centres, then 4 corners of a default element per node, 2 of them in the domain
-    assert term.elements.shape == (2, 26, 4) and int(term.present.sum()) == 104 and term.points.shape == (28 + 104, 2)
+    # 28 report centres, then at each of three depths 4 corners a node, 2 of them in the domain
+    assert term.elements.shape == (4, 26, 4) and int(term.present.sum()) == 208 and term.points.shape == (28 + 3 * 104, 2)
     assert np.allclose(term.points[:28, 0], 1.5 - h / 2)  # the report grid's centres by the pads
-    corners = term.points[term.elements[1][term.present[1]]]
-    assert np.allclose(corners[:, 0], 1.5 - h) and int(term.present[1].sum()) == 52
+    for k, depth in enumerate((h, h / 4, h / 8)):
+        corners = term.points[term.elements[k + 1][term.present[k + 1]]]
+        assert np.allclose(corners[:, 0], 1.5 - depth) and int(term.present[k + 1].sum()) == 52
     xc = term.points
-    # solid up to one report element short: m = h / 2 at the report's centres, 0 at the corners
+    # solid up to one report element short: m = h / 2, 0, 3 h / 4, 7 h / 8 at the four depths
     loss = term.loss(_Field((xc[:, 0] - 1.5 + h)[None]))
-    assert float(loss) == pytest.approx(((h / 2 + h / 4) + (0 + h / 4)) / 2 / (h / 2), rel=1e-9)
+    margins = (h / 2 + h / 4) + (0 + h / 4) + (3 * h / 4 + h / 8) + (7 * h / 8 + h / 16)
+    assert float(loss) == pytest.approx(margins / 4 / (h / 2), rel=1e-9)
     assert float(term.loss(_Field((xc[:, 0] - 1.6)[None]))) == 0.0
     low = term.loss(_Field(torch.where(xc[:, 1] < 0.5, xc[:, 0] - 1.6, xc[:, 0] - 1.5 + h)[None]))
     assert float(low) == pytest.approx(0.5 * float(loss), rel=1e-9)  # one pad held of two
-    w0 = term.width(0)  # at the start the same shape costs ((h / 2 + w0 / 2) + w0 / 2) / 2 / w0
+    w0 = term.width(0)  # at the start the margins are w0 / 2, w0 / 2, w0 / 4 and w0 / 8
     early = term.loss(_Field((xc[:, 0] - 1.5 + h)[None], step=0))
-    assert float(early) == pytest.approx((h / 2 + w0) / 2 / w0, rel=1e-9)
+    assert float(early) == pytest.approx((h / 2 + 3 * h / 4 + 7 * h / 8 + w0 * (1 + 1 / 4 + 1 / 8)) / 4 / w0, rel=1e-9)
     # a shape that stops a quarter of a pad short of its lower end (y < 0.125): 3 of its 13 nodes
-    # (y = 0.1, 0.1083, 0.1167) short at the report's centres, 2 at the corners (y -+ h: the
-    # third node's upper corner lies at 0.125, in the solid)
+    # (y = 0.1, 0.1083, 0.1167) short at the report's centres and the two finer depths, 2 at the
+    # default's corners (y -+ h: the third node's upper corner lies at 0.125, in the solid)
     short = term.loss(_Field(torch.where(xc[:, 1] < 0.125, xc[:, 0] - 1.5 + h, xc[:, 0] - 1.6)[None]))
-    assert float(short) == pytest.approx((3 * (h / 2 + h / 4) + 2 * (0 + h / 4)) / 52 / (h / 2), rel=1e-9)
+    margins = 3 * (h / 2 + h / 4) + 2 * (0 + h / 4) + 3 * (3 * h / 4 + h / 8) + 3 * (7 * h / 8 + h / 16)
+    assert float(short) == pytest.approx(margins / 104 / (h / 2), rel=1e-9)
     v = AttachmentVerdict(p)
     m = v.measure(None, None, lambda x, z=None: x[:, 0] - 1.6, None)
     assert m == {"unheld_nodes": 0.0} and v.violation(m) is None and v.ratio(m) == 0.0
@@ -365,6 +369,26 @@ def test_attachment_sees_a_pad_held_by_a_wall_thinner_than_a_default_element():
     assert np.append(solid, False)[held_elements(p, fine)].any(axis=1).all()  # the report grid alone holds it
     m = AttachmentVerdict(p).measure(None, None, walled, None)
     assert m["unheld_nodes"] == pytest.approx(13 / 26)
+
+
+def test_attachment_sees_a_pad_end_rounded_off_within_a_report_element():
+    """A notch a third of a report element deep (h / 3, ``h`` = 1/120) cut from the lower pad's
+    end node (1.5, 0.2): the report's centres (h / 2 from the node) and the default's (h) lie in
+    the solid beyond it, those of grids 2 and 4 times as fine (h / 4, h / 8) in the notch, where a
+    solver of that resolution leaves the node on void. The verdict counts that one node of 26."""
+    p = _setting("cantilever", cells=0).problem
+    h = 1 / 120
+
+    def notched(x, z=None):
+        notch = (x[:, 0] > 1.5 - h / 3) & (torch.abs(x[:, 1] - 0.2) < h / 3)
+        return torch.where(notch, torch.ones_like(x[:, 0]), -torch.ones_like(x[:, 0]))
+
+    m = AttachmentVerdict(p).measure(None, None, notched, None)
+    assert m["unheld_nodes"] == pytest.approx(1 / 26)
+    fine = structural_grid(p).refined(4)  # a grid twice as fine as the report's: the node on void
+    solid = np.append(solid_elements(notched, None, fine, np.zeros(fine.n_elements, bool)), False)
+    on_void = ~solid[held_elements(p, fine)].any(axis=1)
+    assert int(on_void.sum()) == 1 and np.allclose(fine.nodes[np.flatnonzero(held_nodes(p, fine))[on_void]], [[1.5, 0.2]])
 
 
 def test_feasibility_checks_leave_the_compliance_report_to_eval():
