@@ -19,25 +19,25 @@ on interfaces) must touch a solid element of E, at four depths:
   void (``docs/structural.md``, "On other grids");
 * at the depths of grids two and four times as fine as the report's: one of the elements of that
   size with a corner at the node solid at its centre, a quarter and an eighth of a report element
-  from the node. Held at the report's depth alone, a pad whose boundary is rounded off at its end
-  (the field a report element's worth positive at the end node) or runs a little inside the pad
-  left the end nodes on void on grids twice as fine as the report's.
+  from the node. Held at the report's and the default's depths alone, a pad whose boundary was
+  rounded off at its end (the field a report element's worth positive at the end node) or ran a
+  little inside the pad left those nodes on void on a grid twice as fine as the report's.
 
 A depth with no element of that size in E at the node falls back on the report's elements.
 
 Loss: over the held nodes, the depths and the shapes, the mean of ``relu(m + a w / 2) / w``, ``m``
 the smallest field value at the centres of the node's elements at that depth, ``a`` 1 at the
-report's and the default grid's depths and the depth over the report's (1/2, 1/4) at the finer
-ones, so that a boundary through the node at a right angle meets the finer depths as it meets the
-report's, and ``w`` the step width of the compliance's continuation
+report's and the default grid's depths and the depth over the report's depth (1/2, 1/4) at the
+finer ones, so that a boundary through the node at a right angle meets the finer depths as it meets
+the report's, and ``w`` the step width of the compliance's continuation
 (:mod:`ginn.constraints.compliance`) on the report's grid: from half the design region's depth
-geometrically down to half a report element side by half the run; from then on zero at the
-report's depth once one of the elements is solid by a quarter of a report element. Early on, while the wide step
-lets the compliance itself reach the loads, the term pushes as gently as the step is wide; with the
-final width from the first step it decided the half MBB beam's topology early (seed 0: compliance
-164.3 against 147.0 without the term). With the sharp step of the late run the compliance has no
-gradient at an element several elements from the boundary, so without the term a generative model
-kept shapes whose boundary met a load pad from outside the domain.
+geometrically down to half a report element side by half the run; from then on zero at the report's
+depth once one of the elements is solid by a quarter of a report element. Early on, while the wide
+step lets the compliance itself reach the loads, the term pushes as gently as the step is wide;
+with the final width from the first step it decided the half MBB beam's topology early (seed 0:
+compliance 164.3 against 147.0 without the term). With the sharp step of the late run the
+compliance has no gradient at an element several elements from the boundary, so without the term a
+generative model kept shapes whose boundary met a load pad from outside the domain.
 
 Verdict (``attachment``): the share of the held nodes of the report's grid that are not held at
 every depth (``f <= 0`` at the centre of one of the node's elements in E, at each),
