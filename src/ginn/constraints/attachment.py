@@ -100,8 +100,9 @@ class AttachmentVerdict(Verdict):
             return {"unheld_nodes": None}
         solid = np.append(solid_elements(field, z, grid, void), False)  # index -1: no element
         ok = solid[held].any(axis=1)
-        for corners, present in depths:
-            deep = (solid_at(field, z, corners.reshape(-1, grid.dim)).reshape(present.shape) & present).any(axis=1)
+        corners = solid_at(field, z, np.concatenate([c.reshape(-1, grid.dim) for c, _ in depths]))  # one pass
+        for (_, present), at in zip(depths, np.split(corners, len(depths))):
+            deep = (at.reshape(present.shape) & present).any(axis=1)
             ok &= deep | ~present.any(axis=1)  # no corner in E: judged on the report's grid alone
         return {"unheld_nodes": float(1.0 - ok.mean())}
 
