@@ -15,9 +15,12 @@ forces. Two methods solve ``K u = f``:
   sparse matrix. The shapes of a batch run side by side on as many threads as torch uses (the
   factorisations release the GIL), each on one BLAS thread, so that each shape's solve is the
   same on any count;
-* ``cg``: matrix-free conjugate gradients in torch, preconditioned by the diagonal, every shape and
-  load case of the batch in one set of tensor operations on the moduli's device, warm-started from
-  the previous solve of a batch of the same size.
+* ``cg``: matrix-free conjugate gradients in torch preconditioned by one V-cycle of geometric
+  multigrid (:mod:`ginn.physics.multigrid`), every shape and load case of the batch in one set of
+  tensor operations on the moduli's device, warm-started from the previous solve of a batch of the
+  same size; ``cg-diagonal``: the same preconditioned by the diagonal (the comparison of
+  ``benchmarks/structural.py solver``). Both solve over the active elements only (``active``:
+  those of the design region, where a grid over a box has elements that stay void).
 
 ``auto`` picks ``direct`` for 2D grids on the CPU and ``cg`` for 3D grids and on accelerators
 (``docs/structural.md``, "The solver", has the measurements).
@@ -38,10 +41,11 @@ from threadpoolctl import ThreadpoolController
 
 from .elements import element_stiffness
 from .grid import ElementGrid
+from .multigrid import Multigrid
 
 __all__ = ["ElasticitySolver", "METHODS"]
 
-METHODS = ("auto", "direct", "cg")
+METHODS = ("auto", "direct", "cg", "cg-diagonal")
 
 _BLAS = ThreadpoolController()  # each shape's factorisation runs on one BLAS thread (``ElasticitySolver.solve``)
 
@@ -57,10 +61,16 @@ class ElasticitySolver:
         method: one of :data:`METHODS`.
         rtol: relative residual at which CG stops.
         max_iter: CG's iteration cap (a solve that reaches it raises).
+        active: ``(n_elements,)`` bool, the elements that may carry load (default: all). The CG
+            methods leave the others out (modulus zero instead of the weak ersatz) and hold the
+            degrees of freedom of nodes with no active element at zero, so that a grid over a box
+            solves only the design region's share of it; the direct method solves every element,
+            as given.
     """
 
     def __init__(self, grid: ElementGrid, nu: float, fixed: np.ndarray, forces: np.ndarray, *,
-                 method: str = "auto", rtol: float = 1e-10, max_iter: int = 20_000) -> None:
+                 method: str = "auto", rtol: float = 1e-10, max_iter: int = 20_000,
+                 active: np.ndarray | None = None) -> None:
         if method not in METHODS:
             raise ValueError(f"ElasticitySolver: method must be one of {METHODS}, not {method!r}")
         fixed = np.asarray(fixed, dtype=bool).reshape(-1)
@@ -72,14 +82,22 @@ class ElasticitySolver:
         self.method = method
         self.rtol = float(rtol)
         self.max_iter = int(max_iter)
+        self.iterations = 0  # CG's iterations in the last solve
         self.K0 = element_stiffness(grid.h, nu)  # (k, k)
         self.fixed = fixed
         self.free = np.flatnonzero(~fixed)
+        self.active = np.ones(grid.n_elements, bool) if active is None else np.asarray(active, dtype=bool).reshape(-1)
+        if self.active.shape != (grid.n_elements,):
+            raise ValueError("ElasticitySolver: active needs (n_elements,) entries")
+        touched = np.zeros(grid.n_dofs, bool)
+        touched[grid.element_dofs[self.active].reshape(-1)] = True
+        self.held = fixed | ~touched  # the CG methods' zero degrees of freedom: fixed, or on no active element
         self.forces = forces
         self._pattern: tuple | None = None
         self._warm: dict = {}
         self._torch_cache: dict = {}
         self._band: tuple | None = None
+        self._mg: Multigrid | None = None
 
     @property
     def n_loads(self) -> int:
@@ -131,8 +149,8 @@ class ElasticitySolver:
         if not bool(torch.all(E > 0)):
             raise ValueError("ElasticitySolver.solve: every element modulus must be positive (give void a weak ersatz modulus)")
         method = self.resolved_method(E.device)
-        if method == "cg":
-            return self._solve_cg(E.to(torch.float64))
+        if method in ("cg", "cg-diagonal"):
+            return self._solve_cg(E.to(torch.float64), multigrid=method == "cg")
         En = E.to(torch.float64).cpu().numpy()
         U = np.zeros((En.shape[0], self.n_loads, self.grid.n_dofs))
         F = np.ascontiguousarray(self.forces[:, self.free].T)  # (nf, L)
@@ -219,48 +237,73 @@ class ElasticitySolver:
                 torch.as_tensor(self.grid.element_dofs, device=device),
                 torch.as_tensor(~self.fixed, device=device, dtype=torch.float64),
                 torch.as_tensor(self.forces, device=device),
+                torch.as_tensor(np.flatnonzero(self.active), device=device),
+                torch.as_tensor(~self.held, device=device, dtype=torch.float64),
             )
         return self._torch_cache[key]
 
     def apply(self, moduli: torch.Tensor, U: torch.Tensor) -> torch.Tensor:
-        """``K(E) u`` matrix-free for moduli ``(B, n_elements)`` and displacements ``(B, L, n_dofs)``
-        (float64), the fixed rows and columns removed (zero there)."""
-        K0, edof, free, _ = self._torch_data(U.device)
+        """``K(E) u`` of the CG methods, matrix-free, for moduli ``(B, n_elements)`` and displacements
+        ``(B, L, n_dofs)`` (float64): the active elements only, the rows and columns of
+        :attr:`held` degrees of freedom removed (zero there)."""
+        K0, edof, _, _, act, free = self._torch_data(U.device)
+        edof = edof[act]
         U = U * free
-        Ue = U[:, :, edof]  # (B, L, ne, k)
-        Fe = torch.matmul(Ue, K0) * moduli[:, None, :, None]
+        Ue = U[:, :, edof]  # (B, L, n_active, k)
+        Fe = torch.matmul(Ue, K0) * moduli[:, act][:, None, :, None]
         out = torch.zeros_like(U)
         out.index_add_(2, edof.reshape(-1), Fe.reshape(*Fe.shape[:2], -1))
         return out * free
 
-    def _solve_cg(self, E: torch.Tensor) -> torch.Tensor:
-        K0, edof, free, forces = self._torch_data(E.device)
+    def multigrid(self) -> Multigrid:
+        """The geometric multigrid hierarchy of the grid and its fixed degrees of freedom."""
+        if self._mg is None:
+            self._mg = Multigrid(self.grid, self.K0, self.held, self.active)
+        return self._mg
+
+    def _solve_cg(self, E: torch.Tensor, multigrid: bool) -> torch.Tensor:
+        K0, edof, _, forces, act, free = self._torch_data(E.device)
         B, L, n = E.shape[0], self.n_loads, self.grid.n_dofs
-        diag = torch.zeros(B, n, dtype=torch.float64, device=E.device)
-        diag.index_add_(1, edof.reshape(-1), (E[:, :, None] * torch.diagonal(K0)[None, None, :]).reshape(B, -1))
-        inv = torch.where(free > 0, 1.0 / diag.clamp_min(torch.finfo(torch.float64).tiny), 0.0)[:, None, :]
+        tiny = torch.finfo(torch.float64).tiny
+        E = torch.where(torch.as_tensor(self.active, device=E.device), E, 0.0)
+        if multigrid:
+            precondition = self.multigrid().hierarchy(E, lambda U: self.apply(E, U)).precondition
+            every = 1
+        else:
+            diag = torch.zeros(B, n, dtype=torch.float64, device=E.device)
+            diag.index_add_(1, edof.reshape(-1), (E[:, :, None] * torch.diagonal(K0)[None, None, :]).reshape(B, -1))
+            inv = torch.where(free > 0, 1.0 / diag.clamp_min(tiny), 0.0)[:, None, :]
+
+            def precondition(r: torch.Tensor) -> torch.Tensor:
+                return inv * r
+
+            every = 10
         f = (forces * free).expand(B, L, n)
         x = self._warm.get(("cg", B, str(E.device)))
         x = torch.zeros_like(f) if x is None else x.clone()
         r = f - self.apply(E, x)
-        z = inv * r
+        fnorm = f.norm(dim=-1, keepdim=True).clamp_min(tiny)
+        self.iterations = 0
+        if bool(torch.all(r.norm(dim=-1, keepdim=True) <= self.rtol * fnorm)):
+            return x
+        z = precondition(r)
         p = z.clone()
         rz = (r * z).sum(-1, keepdim=True)
-        fnorm = f.norm(dim=-1, keepdim=True).clamp_min(torch.finfo(torch.float64).tiny)
         for it in range(self.max_iter):
             Ap = self.apply(E, p)
-            alpha = rz / (p * Ap).sum(-1, keepdim=True).clamp_min(torch.finfo(torch.float64).tiny)
+            alpha = rz / (p * Ap).sum(-1, keepdim=True).clamp_min(tiny)
             x = x + alpha * p
             r = r - alpha * Ap
-            if it % 10 == 9 and bool(torch.all(r.norm(dim=-1, keepdim=True) <= self.rtol * fnorm)):
+            if it % every == every - 1 and bool(torch.all(r.norm(dim=-1, keepdim=True) <= self.rtol * fnorm)):
                 break
-            z = inv * r
+            z = precondition(r)
             rz_new = (r * z).sum(-1, keepdim=True)
-            p = z + (rz_new / rz.clamp_min(torch.finfo(torch.float64).tiny)) * p
+            p = z + (rz_new / rz.clamp_min(tiny)) * p
             rz = rz_new
         else:
             worst = float((r.norm(dim=-1, keepdim=True) / fnorm).max())
             raise RuntimeError(f"ElasticitySolver: CG reached {self.max_iter} iterations at relative residual {worst:.2e}")
+        self.iterations = it + 1
         self._warm[("cg", B, str(E.device))] = x
         return x
 
@@ -277,12 +320,16 @@ class ElasticitySolver:
 
     def element_energy(self, U: torch.Tensor) -> torch.Tensor:
         """``u_e^T K0 u_e`` ``(B, L, n_elements)`` of displacements ``(B, L, n_dofs)``: twice the strain
-        energy of each element at unit modulus."""
-        K0, edof, _, _ = self._torch_data(U.device)
+        energy of each element at unit modulus (zero at the elements the CG methods leave out, on
+        a device where they solve)."""
+        K0, edof, _, _, act, _ = self._torch_data(U.device)
         Ue = U[:, :, edof]
-        return (torch.matmul(Ue, K0) * Ue).sum(-1)
+        energy = (torch.matmul(Ue, K0) * Ue).sum(-1)
+        if self.resolved_method(U.device) != "direct" and act.numel() < self.grid.n_elements:
+            energy = torch.where(torch.as_tensor(self.active, device=U.device), energy, 0.0)
+        return energy
 
     def work(self, U: torch.Tensor) -> torch.Tensor:
         """``f^T u`` ``(B, L)``: the compliance of each shape and load case."""
-        _, _, free, forces = self._torch_data(U.device)
+        _, _, free, forces, _, _ = self._torch_data(U.device)
         return ((forces * free)[None] * U).sum(-1)

@@ -192,8 +192,13 @@ def structural_solver(problem: Problem, grid: ElementGrid, method: str = "auto")
                     forces[c, near] += couple(grid.nodes[near], load.torque)
                 except ValueError as e:
                     raise SpecError(f"spec field '{label}.torque': {e}") from None
+    # the elements of E, and those at a loaded node (which the CG methods would otherwise leave out)
+    loaded = np.flatnonzero(np.abs(forces).sum(axis=(0, 2)) > 0)
+    active = ~void_elements(problem, grid)
+    around = grid.node_elements[loaded]
+    active[around[around >= 0]] = True
     solver = ElasticitySolver(grid, ph.poisson_ratio, fixed.reshape(-1), forces.reshape(len(ph.load_cases), -1),
-                              method=method)
+                              method=method, active=active)
     return solver, np.array([case.weight for case in ph.load_cases])
 
 
