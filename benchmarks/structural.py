@@ -2,6 +2,7 @@
 
     python benchmarks/structural.py simp        # the half MBB beam, 60 x 20, against the 88-line code
     python benchmarks/structural.py solver      # direct vs CG, batched vs one by one (ratios, interleaved)
+    python benchmarks/structural.py multigrid   # the bracket's four load cases: CG's two preconditioners
     python benchmarks/structural.py mbb RUN     # a run of a structural problem against SIMP on the same problem
     python benchmarks/structural.py grids RUN   # the run's exported shapes and SIMP's design re-solved on other grids
 
@@ -21,6 +22,14 @@ its symbolic analysis reused; where it is installed, also one matrix on one thre
 to 360 x 240 elements), both on torch's threads, and (with more than one torch thread) against
 the band's shapes one after another on one BLAS thread and on as many BLAS threads as torch's;
 the configurations take turns block by block and the script prints medians and ratios.
+
+``multigrid`` solves the ``bracket-loads`` problem's four load cases for 4 shapes on its training
+grid (derived from its smallest interface, as ``ginn train`` derives it), each design E's elements
+at densities ``rho`` in ``(0.1, 0.5)`` varying across the envelope, moduli ``VOID + rho^p``:
+``p = 1`` (the grey start of a run) and ``p = 3`` with ``rho`` thresholded at 0.3 (a solid/void end),
+cold (from zero) and warm (from the solve of the same designs' moduli 1 % lower: a step of a run),
+by CG with the multigrid V-cycle and with the diagonal, taking turns; it prints the seconds, the
+iterations and their ratios.
 
 ``mbb RUN`` (any structural problem's run, after ``ginn eval RUN``) prints the run's volume
 fractions and compliances from its ``metrics.json`` beside the SIMP reference of its problem
@@ -101,17 +110,21 @@ def cantilever_case(shape: tuple[int, ...], method: str) -> tuple[ElasticitySolv
 def run_solver(blocks: int) -> None:
     torch.set_num_threads(max(1, torch.get_num_threads()))
     for shape in ((120, 40), (240, 80), (24, 12, 12), (40, 20, 20)):
-        cases = {m: cantilever_case(shape, m) for m in ("direct", "cg")}
+        cases = {m: cantilever_case(shape, m) for m in ("direct", "cg", "cg-diagonal")}
         times: dict[str, list[float]] = {m: [] for m in cases}
+        its: dict[str, int] = {}
         for _ in range(blocks):
             for m, (s, E) in cases.items():
                 s._warm.clear()  # a cold solve each time
                 t = time.perf_counter()
                 s.solve(E)
                 times[m].append(time.perf_counter() - t)
+                its[m] = s.iterations if m != "direct" else 0
         med = {m: statistics.median(v) for m, v in times.items()}
         n = cases["cg"][0].free.size
-        print(f"{shape}: {n} unknowns; direct {med['direct']:.3f} s, cg {med['cg']:.3f} s, cg / direct {med['cg'] / med['direct']:.2f}")
+        print(f"{shape}: {n} unknowns; direct {med['direct']:.3f} s, cg {med['cg']:.3f} s ({its['cg']} iterations), "
+              f"cg-diagonal {med['cg-diagonal']:.3f} s ({its['cg-diagonal']} iterations); cg / direct "
+              f"{med['cg'] / med['direct']:.2f}, cg-diagonal / cg {med['cg-diagonal'] / med['cg']:.2f}")
     for shape in ((120, 40), (24, 12, 12)):
         s, E = cantilever_case(shape, "cg")
         batch = torch.stack([E * (1 + 0.1 * k) for k in range(8)])
@@ -130,6 +143,42 @@ def run_solver(blocks: int) -> None:
               f"one by one / batched {statistics.median(one) / statistics.median(many):.2f}")
     band_sizes(blocks)
     factorisers(blocks)
+
+
+def run_multigrid(blocks: int) -> None:
+    """The ``multigrid`` comparison of the module docstring."""
+    from ginn.problems.derived import smallest_feature
+    from ginn.problems.loader import get_spec
+
+    problem = get_spec("bracket-loads").build()
+    grid = structural_grid(problem, 0, smallest_feature(problem))
+    void = void_elements(problem, grid)
+    c = grid.centres
+    rho = np.stack([0.3 + 0.2 * np.sin(7 * c[:, 0] + b) * np.cos(5 * c[:, 1]) * np.sin(6 * c[:, 2] + b) for b in range(4)])
+    designs = {"grey, p = 1": VOID + rho, "solid/void, p = 3": VOID + np.where(rho > 0.3, 1.0, 0.0)}
+    solvers = {m: structural_solver(problem, grid, m)[0] for m in ("cg", "cg-diagonal")}
+    print(f"bracket-loads on {'x'.join(map(str, grid.shape))} elements ({grid.n_dofs} degrees of freedom, "
+          f"{int((~void).sum())} of {grid.n_elements} elements in E), 4 shapes x {solvers['cg'].n_loads} load cases, "
+          f"{torch.get_num_threads()} thread(s)")
+    print("| design | start | multigrid | diagonal | diagonal / multigrid |")
+    print("|---|---|---|---|---|")
+    for name, d in designs.items():
+        E = torch.as_tensor(np.where(void, VOID, d))
+        for start in ("cold", "warm"):
+            t: dict[str, list[float]] = {m: [] for m in solvers}
+            its: dict[str, int] = {}
+            for _ in range(blocks):
+                for m, s in solvers.items():
+                    s._warm.clear()
+                    if start == "warm":
+                        s.solve(0.99 * E)
+                    t0 = time.perf_counter()
+                    s.solve(E)
+                    t[m].append(time.perf_counter() - t0)
+                    its[m] = s.iterations
+            med = {m: statistics.median(v) for m, v in t.items()}
+            print(f"| {name} | {start} | {med['cg']:.2f} s ({its['cg']} iterations) | {med['cg-diagonal']:.2f} s "
+                  f"({its['cg-diagonal']} iterations) | {med['cg-diagonal'] / med['cg']:.1f} |", flush=True)
 
 
 def band_sizes(blocks: int) -> None:
@@ -311,7 +360,7 @@ def run_on_grids(run: Path, cells: list[int]) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("what", choices=["simp", "solver", "mbb", "grids"])
+    ap.add_argument("what", choices=["simp", "solver", "multigrid", "mbb", "grids"])
     ap.add_argument("run", nargs="?", type=Path, help="mbb, grids: the run directory")
     ap.add_argument("--cells", type=int, nargs="+", default=[90, 135, 180, 270, 360],
                     help="grids: elements along the longest side of each grid")
@@ -321,6 +370,8 @@ def main() -> None:
         run_simp()
     elif a.what == "solver":
         run_solver(a.blocks)
+    elif a.what == "multigrid":
+        run_multigrid(a.blocks)
     else:
         if a.run is None:
             ap.error(f"{a.what} needs the run directory")
