@@ -136,3 +136,15 @@ def test_elements_left_out_change_the_compliance_by_the_ersatz_share():
     assert torch.all(sol.energy[..., ~active] == 0)
     held = cg.held.reshape(-1, 3).all(axis=1) & ~cg.fixed.reshape(-1, 3).any(axis=1)
     assert held.sum() > 0  # nodes inside the notch are held, not solved
+
+
+def test_a_load_on_a_node_with_no_active_element_is_refused():
+    g = ElementGrid((0.0, 0.0), (2.0, 1.0), (4, 2))
+    fixed = np.zeros(g.n_dofs, bool)
+    fixed[:2] = True
+    F = np.zeros((1, g.n_dofs))
+    F[0, -1] = 1.0  # the far corner node, whose one element is left out
+    active = np.ones(g.n_elements, bool)
+    active[-1] = False
+    with pytest.raises(ValueError, match="no active element"):
+        ElasticitySolver(g, 0.3, fixed, F, method="cg", active=active)

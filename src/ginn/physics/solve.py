@@ -92,6 +92,8 @@ class ElasticitySolver:
         touched = np.zeros(grid.n_dofs, bool)
         touched[grid.element_dofs[self.active].reshape(-1)] = True
         self.held = fixed | ~touched  # the CG methods' zero degrees of freedom: fixed, or on no active element
+        if np.any(forces[:, self.held & ~fixed] != 0):
+            raise ValueError("ElasticitySolver: a load on a node with no active element")
         self.forces = forces
         self._pattern: tuple | None = None
         self._warm: dict = {}
@@ -239,6 +241,7 @@ class ElasticitySolver:
                 torch.as_tensor(self.forces, device=device),
                 torch.as_tensor(np.flatnonzero(self.active), device=device),
                 torch.as_tensor(~self.held, device=device, dtype=torch.float64),
+                torch.as_tensor(self.grid.element_dofs[self.active], device=device),
             )
         return self._torch_cache[key]
 
@@ -246,8 +249,7 @@ class ElasticitySolver:
         """``K(E) u`` of the CG methods, matrix-free, for moduli ``(B, n_elements)`` and displacements
         ``(B, L, n_dofs)`` (float64): the active elements only, the rows and columns of
         :attr:`held` degrees of freedom removed (zero there)."""
-        K0, edof, _, _, act, free = self._torch_data(U.device)
-        edof = edof[act]
+        K0, _, _, _, act, free, edof = self._torch_data(U.device)
         U = U * free
         Ue = U[:, :, edof]  # (B, L, n_active, k)
         Fe = torch.matmul(Ue, K0) * moduli[:, act][:, None, :, None]
@@ -262,7 +264,7 @@ class ElasticitySolver:
         return self._mg
 
     def _solve_cg(self, E: torch.Tensor, multigrid: bool) -> torch.Tensor:
-        K0, edof, _, forces, act, free = self._torch_data(E.device)
+        K0, edof, _, forces, _, free, _ = self._torch_data(E.device)
         B, L, n = E.shape[0], self.n_loads, self.grid.n_dofs
         tiny = torch.finfo(torch.float64).tiny
         E = torch.where(torch.as_tensor(self.active, device=E.device), E, 0.0)
@@ -322,7 +324,7 @@ class ElasticitySolver:
         """``u_e^T K0 u_e`` ``(B, L, n_elements)`` of displacements ``(B, L, n_dofs)``: twice the strain
         energy of each element at unit modulus (zero at the elements the CG methods leave out, on
         a device where they solve)."""
-        K0, edof, _, _, act, _ = self._torch_data(U.device)
+        K0, edof, _, _, act, _, _ = self._torch_data(U.device)
         Ue = U[:, :, edof]
         energy = (torch.matmul(Ue, K0) * Ue).sum(-1)
         if self.resolved_method(U.device) != "direct" and act.numel() < self.grid.n_elements:
@@ -331,5 +333,5 @@ class ElasticitySolver:
 
     def work(self, U: torch.Tensor) -> torch.Tensor:
         """``f^T u`` ``(B, L)``: the compliance of each shape and load case."""
-        _, _, free, forces, _, _ = self._torch_data(U.device)
+        _, _, free, forces, _, _, _ = self._torch_data(U.device)
         return ((forces * free)[None] * U).sum(-1)
