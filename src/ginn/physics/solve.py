@@ -31,6 +31,7 @@ Public names: :class:`ElasticitySolver`, :data:`METHODS`.
 from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
@@ -48,6 +49,19 @@ __all__ = ["ElasticitySolver", "METHODS"]
 METHODS = ("auto", "direct", "cg", "cg-diagonal")
 
 _BLAS = ThreadpoolController()  # each shape's factorisation runs on one BLAS thread (``ElasticitySolver.solve``)
+
+
+@dataclass(frozen=True)
+class _DeviceData:
+    """The solver's arrays on one device (:meth:`ElasticitySolver._torch_data`)."""
+
+    K0: torch.Tensor  # (k, k) the unit-modulus element matrix
+    edof: torch.Tensor  # (n_elements, k) every element's degrees of freedom
+    free: torch.Tensor  # (n_dofs,) 1.0 where not fixed
+    forces: torch.Tensor  # (L, n_dofs)
+    active: torch.Tensor  # (n_active,) the active elements' indices
+    solved: torch.Tensor  # (n_dofs,) 1.0 where the CG methods solve (not held)
+    active_edof: torch.Tensor  # (n_active, k) the active elements' degrees of freedom
 
 
 class ElasticitySolver:
@@ -231,17 +245,17 @@ class ElasticitySolver:
 
         return solve_one
 
-    def _torch_data(self, device: torch.device) -> tuple[torch.Tensor, ...]:
+    def _torch_data(self, device: torch.device) -> _DeviceData:
         key = str(device)
         if key not in self._torch_cache:
-            self._torch_cache[key] = (
-                torch.as_tensor(self.K0, device=device),
-                torch.as_tensor(self.grid.element_dofs, device=device),
-                torch.as_tensor(~self.fixed, device=device, dtype=torch.float64),
-                torch.as_tensor(self.forces, device=device),
-                torch.as_tensor(np.flatnonzero(self.active), device=device),
-                torch.as_tensor(~self.held, device=device, dtype=torch.float64),
-                torch.as_tensor(self.grid.element_dofs[self.active], device=device),
+            self._torch_cache[key] = _DeviceData(
+                K0=torch.as_tensor(self.K0, device=device),
+                edof=torch.as_tensor(self.grid.element_dofs, device=device),
+                free=torch.as_tensor(~self.fixed, device=device, dtype=torch.float64),
+                forces=torch.as_tensor(self.forces, device=device),
+                active=torch.as_tensor(np.flatnonzero(self.active), device=device),
+                solved=torch.as_tensor(~self.held, device=device, dtype=torch.float64),
+                active_edof=torch.as_tensor(self.grid.element_dofs[self.active], device=device),
             )
         return self._torch_cache[key]
 
@@ -249,13 +263,13 @@ class ElasticitySolver:
         """``K(E) u`` of the CG methods, matrix-free, for moduli ``(B, n_elements)`` and displacements
         ``(B, L, n_dofs)`` (float64): the active elements only, the rows and columns of
         :attr:`held` degrees of freedom removed (zero there)."""
-        K0, _, _, _, act, free, edof = self._torch_data(U.device)
-        U = U * free
-        Ue = U[:, :, edof]  # (B, L, n_active, k)
-        Fe = torch.matmul(Ue, K0) * moduli[:, act][:, None, :, None]
+        d = self._torch_data(U.device)
+        U = U * d.solved
+        Ue = U[:, :, d.active_edof]  # (B, L, n_active, k)
+        Fe = torch.matmul(Ue, d.K0) * moduli[:, d.active][:, None, :, None]
         out = torch.zeros_like(U)
-        out.index_add_(2, edof.reshape(-1), Fe.reshape(*Fe.shape[:2], -1))
-        return out * free
+        out.index_add_(2, d.active_edof.reshape(-1), Fe.reshape(*Fe.shape[:2], -1))
+        return out * d.solved
 
     def multigrid(self) -> Multigrid:
         """The geometric multigrid hierarchy of the grid and its fixed degrees of freedom."""
@@ -264,7 +278,8 @@ class ElasticitySolver:
         return self._mg
 
     def _solve_cg(self, E: torch.Tensor, multigrid: bool) -> torch.Tensor:
-        K0, edof, _, forces, _, free, _ = self._torch_data(E.device)
+        d = self._torch_data(E.device)
+        K0, edof, forces, free = d.K0, d.edof, d.forces, d.solved
         B, L, n = E.shape[0], self.n_loads, self.grid.n_dofs
         tiny = torch.finfo(torch.float64).tiny
         E = torch.where(torch.as_tensor(self.active, device=E.device), E, 0.0)
@@ -324,14 +339,14 @@ class ElasticitySolver:
         """``u_e^T K0 u_e`` ``(B, L, n_elements)`` of displacements ``(B, L, n_dofs)``: twice the strain
         energy of each element at unit modulus (zero at the elements the CG methods leave out, on
         a device where they solve)."""
-        K0, edof, _, _, act, _, _ = self._torch_data(U.device)
-        Ue = U[:, :, edof]
-        energy = (torch.matmul(Ue, K0) * Ue).sum(-1)
-        if self.resolved_method(U.device) != "direct" and act.numel() < self.grid.n_elements:
+        d = self._torch_data(U.device)
+        Ue = U[:, :, d.edof]
+        energy = (torch.matmul(Ue, d.K0) * Ue).sum(-1)
+        if self.resolved_method(U.device) != "direct" and d.active.numel() < self.grid.n_elements:
             energy = torch.where(torch.as_tensor(self.active, device=U.device), energy, 0.0)
         return energy
 
     def work(self, U: torch.Tensor) -> torch.Tensor:
         """``f^T u`` ``(B, L)``: the compliance of each shape and load case."""
-        _, _, free, forces, _, _, _ = self._torch_data(U.device)
-        return ((forces * free)[None] * U).sum(-1)
+        d = self._torch_data(U.device)
+        return ((d.forces * d.free)[None] * U).sum(-1)
