@@ -28,8 +28,9 @@ grid (derived from its smallest interface, as ``ginn train`` derives it), each d
 at densities ``rho`` in ``(0.1, 0.5)`` varying across the envelope, moduli ``VOID + rho^p``:
 ``p = 1`` (the grey start of a run) and ``p = 3`` with ``rho`` thresholded at 0.3 (a solid/void end),
 cold (from zero) and warm (from the solve of the same designs' moduli 1 % lower: a step of a run),
-by CG with the multigrid V-cycle and with the diagonal, taking turns; it prints the seconds, the
-iterations and their ratios.
+by CG with the multigrid V-cycle (balanced by the floating pieces' rigid motions, the code's),
+with the plain V-cycle and with the diagonal, taking turns; it prints each design's floating
+pieces per shape, the seconds, the iterations and their ratios.
 
 ``mbb RUN`` (any structural problem's run, after ``ginn eval RUN``) prints the run's volume
 fractions and compliances from its ``metrics.json`` beside the SIMP reference of its problem
@@ -61,7 +62,7 @@ import scipy.sparse.linalg as spla
 import torch
 from skimage.draw import polygon
 
-from ginn.physics import ElasticitySolver, ElementGrid, simp
+from ginn.physics import ElasticitySolver, ElementGrid, FloatingModes, Multigrid, simp
 from ginn.problems import load_spec
 from ginn.problems.derived import smallest_feature
 from ginn.problems.structural import VOID, held_elements, simp_reference, structural_grid, structural_solver, void_elements
@@ -156,14 +157,19 @@ def run_multigrid(blocks: int) -> None:
     c = grid.centres
     rho = np.stack([0.3 + 0.2 * np.sin(7 * c[:, 0] + b) * np.cos(5 * c[:, 1]) * np.sin(6 * c[:, 2] + b) for b in range(4)])
     designs = {"grey, p = 1": VOID + rho, "solid/void, p = 3": VOID + np.where(rho > 0.3, 1.0, 0.0)}
-    solvers = {m: structural_solver(problem, grid, m)[0] for m in ("cg", "cg-diagonal")}
+    solvers = {m: structural_solver(problem, grid, m)[0] for m in ("cg", "plain", "cg-diagonal")}
+    plain = solvers["plain"]
+    plain.method = "cg"
+    plain._mg = Multigrid(grid, plain.K0, plain.held, plain.active, floating=False)
     print(f"bracket-loads on {'x'.join(map(str, grid.shape))} elements ({grid.n_dofs} degrees of freedom, "
           f"{int((~void).sum())} of {grid.n_elements} elements in E), 4 shapes x {solvers['cg'].n_loads} load cases, "
           f"{torch.get_num_threads()} thread(s)")
-    print("| design | start | multigrid | diagonal | diagonal / multigrid |")
-    print("|---|---|---|---|---|")
+    print("| design | floating pieces | start | multigrid | without the pieces' modes | diagonal | without / multigrid "
+          "| diagonal / multigrid |")
+    print("|---|---|---|---|---|---|---|---|")
     for name, d in designs.items():
         E = torch.as_tensor(np.where(void, VOID, d))
+        pieces = FloatingModes(grid, plain.K0, plain.held, torch.where(torch.as_tensor(plain.active), E, 0.0)).n_pieces
         for start in ("cold", "warm"):
             t: dict[str, list[float]] = {m: [] for m in solvers}
             its: dict[str, int] = {}
@@ -177,8 +183,10 @@ def run_multigrid(blocks: int) -> None:
                     t[m].append(time.perf_counter() - t0)
                     its[m] = s.iterations
             med = {m: statistics.median(v) for m, v in t.items()}
-            print(f"| {name} | {start} | {med['cg']:.2f} s ({its['cg']} iterations) | {med['cg-diagonal']:.2f} s "
-                  f"({its['cg-diagonal']} iterations) | {med['cg-diagonal'] / med['cg']:.1f} |", flush=True)
+            print(f"| {name} | {', '.join(map(str, pieces))} | {start} | {med['cg']:.2f} s ({its['cg']} iterations) | "
+                  f"{med['plain']:.2f} s ({its['plain']} iterations) | {med['cg-diagonal']:.2f} s "
+                  f"({its['cg-diagonal']} iterations) | {med['plain'] / med['cg']:.1f} | {med['cg-diagonal'] / med['cg']:.1f} |",
+                  flush=True)
 
 
 def band_sizes(blocks: int) -> None:

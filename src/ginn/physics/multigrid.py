@@ -34,6 +34,7 @@ import numpy as np
 import torch
 
 from .elements import corner_offsets
+from .floating import FloatingModes
 from .grid import ElementGrid
 
 __all__ = ["Multigrid", "Hierarchy", "interpolation_1d", "child_interpolation", "COARSEST_DOFS", "DEGREE", "RATIO"]
@@ -86,14 +87,18 @@ class Multigrid:
         fixed: ``(n_dofs,)`` bool.
         active: ``(n_elements,)`` bool, the elements whose moduli may be nonzero (default: all).
         coarsest: the hierarchy stops at the first level with at most this many degrees of freedom.
+        floating: balance the V-cycle with the rigid motions of the pieces a design leaves floating
+            (:mod:`ginn.physics.floating`; False: the plain V-cycle, for comparison).
     """
 
     def __init__(self, grid: ElementGrid, K0: np.ndarray, fixed: np.ndarray, active: np.ndarray | None = None,
-                 coarsest: int = COARSEST_DOFS) -> None:
+                 coarsest: int = COARSEST_DOFS, floating: bool = True) -> None:
         self.grid = grid
         self.K0 = np.asarray(K0, dtype=np.float64)
         self.fixed = np.asarray(fixed, dtype=bool).reshape(-1)
         self.dim = grid.dim
+        self.coarsest = int(coarsest)
+        self.floating = floating
         grids = [grid]
         while grids[-1].n_dofs > coarsest and max(grids[-1].shape) > 1:
             g = grids[-1]
@@ -207,7 +212,9 @@ class Multigrid:
         zero = torch.diagonal(dense, dim1=-2, dim2=-1) <= 0
         dense = dense + torch.diag_embed(zero.to(torch.float64))
         chol = torch.linalg.cholesky(dense)
-        return Hierarchy(self, levels, moduli, apply_fine, mats, inv, spread, chol, (~zero).to(torch.float64), free)
+        modes = FloatingModes(self.grid, self.K0, self.fixed, moduli if self.floating else torch.zeros_like(moduli),
+                              limit=self.coarsest)
+        return Hierarchy(self, levels, moduli, apply_fine, mats, inv, spread, chol, (~zero).to(torch.float64), free, modes)
 
 
 def _spread(mats: torch.Tensor) -> float:
@@ -249,6 +256,7 @@ class Hierarchy:
     chol: torch.Tensor  # (B, n, n) the coarsest level's Cholesky factor
     live: torch.Tensor  # (B, n) the coarsest level's degrees of freedom with a nonzero row
     free: torch.Tensor  # (n_dofs,) the element grid's free mask
+    modes: FloatingModes  # the rigid motions of the floating pieces
 
     def apply(self, li: int, U: torch.Tensor) -> torch.Tensor:
         """Level ``li``'s operator on ``U`` ``(B, L, n_dofs_l)``."""
@@ -308,5 +316,11 @@ class Hierarchy:
         return self._smooth(li, R, X)
 
     def precondition(self, R: torch.Tensor) -> torch.Tensor:
-        """One V-cycle on the element grid's residuals ``(B, L, n_dofs)`` (zero at fixed degrees of freedom)."""
-        return self._cycle(0, R)
+        """One V-cycle on the element grid's residuals ``(B, L, n_dofs)`` (zero at fixed degrees of
+        freedom), balanced by the floating pieces' rigid motions (:mod:`ginn.physics.floating`):
+        ``Q R + (I - Q A) V (I - A Q) R``, ``Q = Z A_c^-1 Z^T`` and ``V`` the cycle."""
+        if self.modes.G == 0:
+            return self._cycle(0, R)
+        q = self.modes.correct(R)
+        v = self._cycle(0, R - self.apply(0, q))
+        return q + v - self.modes.correct(self.apply(0, v))
