@@ -57,7 +57,7 @@ from ..problems.problem import Problem
 from ..problems.structural import held_corners, held_elements, void_elements
 from .base import Constraint, Setting, Stage
 from .batch import Batch
-from .compliance import continuation, narrowed, report_grid, solid_at, solid_elements, start_width
+from .compliance import continuation, narrowed, report_grid, solid_at, start_width
 from .verdict import Verdict, Violation, number_text
 
 __all__ = ["Attachment", "AttachmentVerdict", "DEPTHS", "POINTS"]
@@ -95,13 +95,16 @@ class AttachmentVerdict(Verdict):
         return self._grid
 
     def measure(self, shape, context, field, z) -> dict[str, Any]:
-        grid, void, held, depths = self.grid()
+        grid, _, held, depths = self.grid()
         if held.shape[0] == 0:
             return {"unheld_nodes": None}
-        solid = np.append(solid_elements(field, z, grid, void), False)  # index -1: no element
+        used = np.unique(held[held >= 0])  # the report grid's elements at a held node, all in E
+        points = np.concatenate([grid.centres[used]] + [c.reshape(-1, grid.dim) for c, _ in depths])
+        inside = solid_at(field, z, points)  # one pass over the nodes' elements of every depth
+        solid = np.zeros(grid.n_elements + 1, dtype=bool)  # index -1: no element
+        solid[used] = inside[: used.size]
         ok = solid[held].any(axis=1)
-        corners = solid_at(field, z, np.concatenate([c.reshape(-1, grid.dim) for c, _ in depths]))  # one pass
-        for (_, present), at in zip(depths, np.split(corners, len(depths))):
+        for (_, present), at in zip(depths, np.split(inside[used.size:], len(depths))):
             deep = (at.reshape(present.shape) & present).any(axis=1)
             ok &= deep | ~present.any(axis=1)  # no corner in E: judged on the report's grid alone
         return {"unheld_nodes": float(1.0 - ok.mean())}
