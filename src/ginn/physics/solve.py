@@ -16,7 +16,8 @@ forces. Two methods solve ``K u = f``:
   factorisations release the GIL), each on one BLAS thread, so that each shape's solve is the
   same on any count;
 * ``cg``: matrix-free conjugate gradients in torch preconditioned by one V-cycle of geometric
-  multigrid (:mod:`ginn.physics.multigrid`), every shape and load case of the batch in one set of
+  multigrid (:mod:`ginn.physics.multigrid`), balanced by the rigid motions of the pieces a design
+  leaves floating (:mod:`ginn.physics.floating`), every shape and load case of the batch in one set of
   tensor operations on the moduli's device, warm-started from the previous solve of a batch of the
   same size; ``cg-diagonal``: the same preconditioned by the diagonal (the comparison of
   ``benchmarks/structural.py solver``). Both solve over the active elements only (``active``:
