@@ -19,8 +19,10 @@ One V-cycle: a Chebyshev polynomial of :data:`DEGREE` in ``D^-1 A`` on the spect
 ``[mu / RATIO, mu]`` smooths before and after the coarse correction (``mu`` bounds the spectrum:
 the largest over the level's elements of their own ``diag(K_e)^-1 K_e``'s), and a dense Cholesky
 solve settles the coarsest level. Pre- and post-smoothing apply the same polynomial, so the cycle
-is a symmetric positive definite preconditioner for CG. Every shape and load case of a batch runs
-in the same tensor operations, on the device of the moduli.
+is a symmetric positive definite preconditioner for CG. Where a design leaves pieces of solid
+floating in the void, whose rigid motions no level represents, the cycle is balanced by those
+motions (:mod:`ginn.physics.floating`). Every shape and load case of a batch runs in the same
+tensor operations, on the device of the moduli.
 
 Public names: :class:`Multigrid`, :class:`Hierarchy`, :func:`interpolation_1d`, :func:`child_interpolation`,
 :data:`COARSEST_DOFS`, :data:`DEGREE`, :data:`RATIO`.
