@@ -84,6 +84,7 @@ class FloatingModes:
         nodes_of = grid.element_nodes  # (ne, 2^d)
         nc = nodes_of.shape[1]
         fixed_node = np.asarray(fixed, dtype=bool).reshape(grid.n_nodes, d).any(axis=1)
+        supported = fixed_node[nodes_of].any(axis=1)  # (ne,) the elements with a fixed degree of freedom
         piece_of_element = np.full((B, grid.n_elements), -1, dtype=np.int64)
         counts = np.zeros(B, dtype=np.int64)
         for b in range(B):
@@ -95,17 +96,18 @@ class FloatingModes:
             labels, n = ndimage.label(solid.reshape(grid.shape))  # elements sharing a face
             labels = labels.reshape(-1)
             anchored = np.zeros(n + 1, dtype=bool)
-            anchored[labels[solid & fixed_node[nodes_of].any(axis=1)]] = True
+            anchored[labels[solid & supported]] = True
             anchored[0] = True
             index = np.full(n + 1, -1, dtype=np.int64)
             floating = np.flatnonzero(~anchored)
             if limit is not None and floating.size * self.m > limit:
-                size = np.bincount(labels, minlength=n + 1)[floating]
-                floating = floating[np.argsort(-size, kind="stable")[: limit // self.m]]
+                elements = np.bincount(labels, minlength=n + 1)[floating]
+                floating = floating[np.argsort(-elements, kind="stable")[: limit // self.m]]
             index[floating] = np.arange(floating.size)
             counts[b] = floating.size
             piece_of_element[b] = index[labels]
         self.n_pieces = counts
+        self.B = B
         self.G = int(counts.max()) if B else 0
         if self.G == 0:
             return
@@ -194,10 +196,11 @@ class FloatingModes:
     def basis(self, n_dofs: int) -> torch.Tensor:
         """``Z`` as a dense ``(B, G m, n_dofs)`` tensor (column ``g m + i``: mode ``i`` of piece
         ``g``; zero for the pieces a shape does not have), for checks on small grids."""
-        B = self.used.shape[0]
-        Z = torch.zeros(B, self.G, self.m, n_dofs, dtype=self.phi.dtype, device=self.phi.device)
+        if self.G == 0:
+            return torch.zeros(self.B, 0, n_dofs, dtype=torch.float64)
+        Z = torch.zeros(self.B, self.G, self.m, n_dofs, dtype=self.phi.dtype, device=self.phi.device)
         rows = self.rows[:, None].expand_as(self.dofs)
         slots = self.slots[:, None].expand_as(self.dofs)
         for i in range(self.m):
             Z[:, :, i].index_put_((rows, slots, self.dofs), self.phi[:, :, i], accumulate=True)
-        return Z.reshape(B, self.G * self.m, n_dofs)
+        return Z.reshape(self.B, self.G * self.m, n_dofs)
