@@ -164,7 +164,7 @@ class FloatingModes:
         Ac += np.einsum("bi,ij->bij", unused.reshape(B, n).astype(np.float64), np.eye(n))
         Ac = 0.5 * (Ac + np.swapaxes(Ac, 1, 2))
         chol, info = torch.linalg.cholesky_ex(torch.as_tensor(Ac, device=dev))
-        if bool((info != 0).any()):  # a mode that no active element strains: leave it to the multigrid
+        if bool((info != 0).any()):  # a mode no active element strains (the operator is singular there too)
             scale = np.abs(np.diagonal(Ac, axis1=1, axis2=2)).max(axis=1)
             Ac += 1e-12 * scale[:, None, None] * np.eye(n)[None]
             chol = torch.linalg.cholesky(torch.as_tensor(Ac, device=dev))
