@@ -214,8 +214,7 @@ class Multigrid:
         zero = torch.diagonal(dense, dim1=-2, dim2=-1) <= 0
         dense = dense + torch.diag_embed(zero.to(torch.float64))
         chol = torch.linalg.cholesky(dense)
-        modes = FloatingModes(self.grid, self.K0, self.fixed, moduli if self.floating else torch.zeros_like(moduli),
-                              limit=self.coarsest)
+        modes = FloatingModes(self.grid, self.K0, self.fixed, moduli, limit=self.coarsest) if self.floating else None
         return Hierarchy(self, levels, moduli, apply_fine, mats, inv, spread, chol, (~zero).to(torch.float64), free, modes)
 
 
@@ -258,7 +257,7 @@ class Hierarchy:
     chol: torch.Tensor  # (B, n, n) the coarsest level's Cholesky factor
     live: torch.Tensor  # (B, n) the coarsest level's degrees of freedom with a nonzero row
     free: torch.Tensor  # (n_dofs,) the element grid's free mask
-    modes: FloatingModes  # the rigid motions of the floating pieces
+    modes: FloatingModes | None  # the rigid motions of the floating pieces (None: the plain cycle)
 
     def apply(self, li: int, U: torch.Tensor) -> torch.Tensor:
         """Level ``li``'s operator on ``U`` ``(B, L, n_dofs_l)``."""
@@ -321,7 +320,7 @@ class Hierarchy:
         """One V-cycle on the element grid's residuals ``(B, L, n_dofs)`` (zero at fixed degrees of
         freedom), balanced by the floating pieces' rigid motions (:mod:`ginn.physics.floating`):
         ``Q R + (I - Q A) V (I - A Q) R``, ``Q = Z A_c^-1 Z^T`` and ``V`` the cycle."""
-        if self.modes.G == 0:
+        if self.modes is None or self.modes.G == 0:
             return self._cycle(0, R)
         q = self.modes.correct(R)
         v = self._cycle(0, R - self.apply(0, q))
