@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Create .venv/ in the repository root if it is missing and install ginn into it (editable, with
-# the `dev` extra: the test suite, its lint, the sweep and persistent-homology extras).
+# the `dev` extra: the test suite, its lint, and the sweep, postgres, track and pardiso extras).
 #
 # The installer is uv (itself installed with pip into the venv), which installs and compiles the
 # dependencies in parallel; where it cannot (no uv for this platform, say), pip does the same.

@@ -118,9 +118,10 @@ class StructuralConfig(Strict):
     cells: int = Field(0, ge=0, description="elements along the domain's longest side (0: 90 in 2D, 36 in 3D, or more "
                        "where the smallest interface would span fewer than 4 elements)")
     method: Literal["auto", "direct", "cg", "cg-diagonal"] = Field(
-        "auto", description="the linear solver: direct (factorisation: LAPACK band Cholesky in 2D, SuperLU in 3D), cg (batched "
-        "matrix-free conjugate gradients preconditioned by geometric multigrid), cg-diagonal (the same preconditioned by "
-        "the diagonal), auto (direct for 2D on the CPU, cg otherwise)")
+        "auto", description="the linear solver: direct (factorisation: LAPACK band Cholesky in 2D; in 3D MKL PARDISO "
+        "with the pardiso extra, SuperLU without), cg (batched matrix-free conjugate gradients preconditioned by "
+        "geometric multigrid), cg-diagonal (the same preconditioned by the diagonal), auto (on the CPU direct for 2D, "
+        "and for 3D with several load cases where PARDISO is installed; cg otherwise)")
 
 
 class ShapeParams(Strict):

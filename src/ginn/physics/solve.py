@@ -4,27 +4,31 @@ batch from its element moduli, solved for every load case.
 ``K(E) = sum_e E_e K0_e`` with ``K0`` the unit-modulus element matrix
 (:func:`~ginn.physics.elements.element_stiffness`), the same for every element of the grid. The
 fixed degrees of freedom are removed (zero displacement there); a load case is a vector of nodal
-forces. Two methods solve ``K u = f``:
+forces. Every method solves over the *active* elements only (``active``: those of the design
+region, where a grid over a box has elements that stay void; default all): the others are left
+out (modulus zero) and the degrees of freedom of nodes with no active element are held at zero.
+Two methods solve ``K u = f``:
 
-* ``direct``: the assembled matrix of the free degrees of freedom (one scatter of the element
-  matrices into a precomputed pattern), factorised once per shape and solved for every load case.
-  In 2D it is a band: the nodes numbered with the grid's shortest axis fastest, the matrix has
-  half-bandwidth at most ``2 n_short + 5`` and LAPACK's band Cholesky (``dpbtrf``/``dpbtrs``)
-  factorises it, followed by one step of iterative refinement; in 3D, where a band would be a
-  plane of nodes wide, SciPy's SuperLU (minimum-degree ordering of ``A^T + A``) factorises the
-  sparse matrix. The shapes of a batch run side by side on as many threads as torch uses (the
-  factorisations release the GIL), each on one BLAS thread, so that each shape's solve is the
+* ``direct``: the assembled matrix of the solved degrees of freedom (one scatter of the element
+  matrices into a precomputed pattern), factorised once per shape and solved for every load case,
+  then one step of iterative refinement. In 2D it is a band: the nodes numbered with the grid's
+  shortest axis fastest, the matrix has half-bandwidth at most ``2 n_short + 5`` and LAPACK's band
+  Cholesky (``dpbtrf``/``dpbtrs``) factorises it; in 3D, where a band would be a plane of nodes
+  wide, MKL's PARDISO (:mod:`ginn.physics.pardiso`, nested dissection and supernodes) factorises
+  the sparse matrix where it is installed, SciPy's SuperLU (minimum-degree ordering of
+  ``A^T + A``) otherwise. The shapes of a batch run side by side on as many threads as torch uses
+  (the factorisations release the GIL), each on one BLAS thread, so that each shape's solve is the
   same on any count;
 * ``cg``: matrix-free conjugate gradients in torch preconditioned by one V-cycle of geometric
   multigrid (:mod:`ginn.physics.multigrid`), balanced by the rigid motions of the pieces a design
   leaves floating (:mod:`ginn.physics.floating`), every shape and load case of the batch in one set of
   tensor operations on the moduli's device, warm-started from the previous solve of a batch of the
   same size; ``cg-diagonal``: the same preconditioned by the diagonal (the comparison of
-  ``benchmarks/structural.py solver``). Both solve over the active elements only (``active``:
-  those of the design region, where a grid over a box has elements that stay void).
+  ``benchmarks/structural.py solver``).
 
-``auto`` picks ``direct`` for 2D grids on the CPU and ``cg`` for 3D grids and on accelerators
-(``docs/structural.md``, "The solver", has the measurements).
+``auto`` picks ``direct`` on the CPU for 2D grids, and for 3D grids with several load cases where
+PARDISO is installed (one factorisation serves every load case, where CG solves each); ``cg``
+otherwise and on accelerators (``docs/structural.md``, "The solver", has the measurements).
 
 Public names: :class:`ElasticitySolver`, :data:`METHODS`.
 """
@@ -44,6 +48,8 @@ from threadpoolctl import ThreadpoolController
 from .elements import element_stiffness
 from .grid import ElementGrid
 from .multigrid import Multigrid
+from .pardiso import PardisoCholesky
+from .pardiso import available as pardiso_available
 
 __all__ = ["ElasticitySolver", "METHODS"]
 
@@ -76,11 +82,10 @@ class ElasticitySolver:
         method: one of :data:`METHODS`.
         rtol: relative residual at which CG stops.
         max_iter: CG's iteration cap (a solve that reaches it raises).
-        active: ``(n_elements,)`` bool, the elements that may carry load (default: all). The CG
-            methods leave the others out (modulus zero instead of the weak ersatz) and hold the
+        active: ``(n_elements,)`` bool, the elements that may carry load (default: all). Every
+            method leaves the others out (modulus zero instead of the weak ersatz) and holds the
             degrees of freedom of nodes with no active element at zero, so that a grid over a box
-            solves only the design region's share of it; the direct method solves every element,
-            as given.
+            solves only the design region's share of it.
     """
 
     def __init__(self, grid: ElementGrid, nu: float, fixed: np.ndarray, forces: np.ndarray, *,
@@ -100,13 +105,13 @@ class ElasticitySolver:
         self.iterations = 0  # CG's iterations in the last solve
         self.K0 = element_stiffness(grid.h, nu)  # (k, k)
         self.fixed = fixed
-        self.free = np.flatnonzero(~fixed)
         self.active = np.ones(grid.n_elements, bool) if active is None else np.asarray(active, dtype=bool).reshape(-1)
         if self.active.shape != (grid.n_elements,):
             raise ValueError("ElasticitySolver: active needs (n_elements,) entries")
         touched = np.zeros(grid.n_dofs, bool)
         touched[grid.element_dofs[self.active].reshape(-1)] = True
-        self.held = fixed | ~touched  # the CG methods' zero degrees of freedom: fixed, or on no active element
+        self.held = fixed | ~touched  # the zero degrees of freedom: fixed, or on no active element
+        self.free = np.flatnonzero(~self.held)  # the direct method's unknowns
         if np.any(forces[:, self.held & ~fixed] != 0):
             raise ValueError("ElasticitySolver: a load on a node with no active element")
         self.forces = forces
@@ -114,6 +119,8 @@ class ElasticitySolver:
         self._warm: dict = {}
         self._torch_cache: dict = {}
         self._band: tuple | None = None
+        self._upper_pattern: tuple | None = None
+        self._factorisers: dict[int, PardisoCholesky] = {}  # the 3D direct method's, per worker thread
         self._mg: Multigrid | None = None
 
     @property
@@ -123,12 +130,17 @@ class ElasticitySolver:
     def resolved_method(self, device: torch.device) -> str:
         if self.method != "auto":
             return self.method
-        return "direct" if device.type == "cpu" and self.grid.dim == 2 else "cg"
+        if device.type != "cpu":
+            return "cg"
+        if self.grid.dim == 2 or (self.n_loads > 1 and pardiso_available()):
+            return "direct"
+        return "cg"
 
     # --- assembly -------------------------------------------------------------------------------
 
     def _sparsity(self) -> tuple:
-        """The CSR pattern of the free-dof matrix and, per kept (element, a, b) entry, its slot."""
+        """The CSR pattern of the free-dof matrix and, per kept (element, a, b) entry, its slot
+        (the elements left out included: their moduli are zero in :meth:`stiffness`)."""
         if self._pattern is None:
             g = self.grid
             k = self.K0.shape[0]
@@ -148,7 +160,10 @@ class ElasticitySolver:
     def stiffness(self, moduli: np.ndarray) -> sp.csr_matrix:
         """The free-dof stiffness matrix of one shape with element moduli ``moduli`` ``(n_elements,)``."""
         keep, slot, indices, indptr, nnz = self._sparsity()
-        vals = (np.asarray(moduli, dtype=np.float64)[:, None] * self.K0.reshape(1, -1)).reshape(-1)[keep]
+        moduli = np.asarray(moduli, dtype=np.float64)
+        if not self.active.all():
+            moduli = np.where(self.active, moduli, 0.0)
+        vals = (moduli[:, None] * self.K0.reshape(1, -1)).reshape(-1)[keep]
         data = np.bincount(slot, weights=vals, minlength=nnz)
         n = self.free.size
         return sp.csr_matrix((data, indices, indptr), shape=(n, n))
@@ -173,9 +188,9 @@ class ElasticitySolver:
         F = np.ascontiguousarray(self.forces[:, self.free].T)  # (nf, L)
         solve_one = self._band_solver(F) if self.grid.dim == 2 else self._sparse_solver(F)
 
-        def run(shapes: np.ndarray) -> None:
+        def run(worker: int, shapes: np.ndarray) -> None:
             for b in shapes:
-                U[b][:, self.free] = solve_one(En[b]).T
+                U[b][:, self.free] = solve_one(En[b], worker).T
 
         # the shapes side by side on torch's threads (the factorisations release the GIL), each on
         # one BLAS thread, so that a shape's solve is the same on any thread count
@@ -183,18 +198,44 @@ class ElasticitySolver:
         with _BLAS.limit(limits=1, user_api="blas"):
             if len(chunks) > 1:
                 with ThreadPoolExecutor(len(chunks)) as pool:
-                    list(pool.map(run, chunks))
+                    list(pool.map(run, range(len(chunks)), chunks))
             else:
-                run(chunks[0])
+                run(0, chunks[0])
         return torch.from_numpy(U).to(E.device)
 
+    def _upper(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The upper triangle of :meth:`stiffness`'s pattern: ``(entries, indices, indptr)``, its
+        entries' positions in the full pattern's data and its own CSR arrays."""
+        if self._upper_pattern is None:
+            _, _, indices, indptr, _ = self._sparsity()
+            rows = np.repeat(np.arange(indptr.size - 1), np.diff(indptr))
+            entries = np.flatnonzero(indices >= rows)  # row by row, columns sorted: a CSR order
+            counts = np.bincount(rows[entries], minlength=indptr.size - 1)
+            self._upper_pattern = (entries, indices[entries], np.concatenate([[0], np.cumsum(counts)]))
+        return self._upper_pattern
+
     def _sparse_solver(self, F: np.ndarray):
-        """``moduli (n_elements,) -> u (nf, L)``: SuperLU, the free-dof loads ``F`` ``(nf, L)``."""
+        """``(moduli (n_elements,), worker) -> u (nf, L)``, the free-dof loads ``F`` ``(nf, L)``:
+        PARDISO's Cholesky where it is installed (one factoriser per worker thread, kept for the
+        solver's life; then one step of iterative refinement), SuperLU otherwise."""
+        if not pardiso_available():
+            def solve_superlu(moduli: np.ndarray, worker: int) -> np.ndarray:
+                return spla.splu(self.stiffness(moduli).tocsc(), permc_spec="MMD_AT_PLUS_A").solve(F)
 
-        def solve_one(moduli: np.ndarray) -> np.ndarray:
-            return spla.splu(self.stiffness(moduli).tocsc(), permc_spec="MMD_AT_PLUS_A").solve(F)
+            return solve_superlu
+        entries, indices, indptr = self._upper()
 
-        return solve_one
+        def solve_pardiso(moduli: np.ndarray, worker: int) -> np.ndarray:
+            K = self.stiffness(moduli)
+            chol = self._factorisers.get(worker)
+            if chol is None:
+                chol = self._factorisers[worker] = PardisoCholesky(indices, indptr)
+            chol.factor(K.data[entries])
+            x = chol.solve(F)
+            x += chol.solve(F - K @ x)
+            return x
+
+        return solve_pardiso
 
     def band_layout(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
         """The 2D direct method's band: ``(order, slots, upper, w)``.
@@ -226,13 +267,13 @@ class ElasticitySolver:
         return self._band
 
     def _band_solver(self, F: np.ndarray):
-        """``moduli (n_elements,) -> u (nf, L)``: LAPACK's band Cholesky in the order of
+        """``(moduli (n_elements,), worker) -> u (nf, L)``: LAPACK's band Cholesky in the order of
         :meth:`band_layout`, then one step of iterative refinement; ``F`` ``(nf, L)`` the free-dof
         loads."""
         order, slots, upper, w = self.band_layout()
         Fb = F[order]
 
-        def solve_one(moduli: np.ndarray) -> np.ndarray:
+        def solve_one(moduli: np.ndarray, worker: int) -> np.ndarray:
             K = self.stiffness(moduli)
             ab = np.zeros((w + 1, order.size), order="F")
             ab.reshape(-1, order="F")[slots] = K.data[upper]
@@ -338,12 +379,11 @@ class ElasticitySolver:
 
     def element_energy(self, U: torch.Tensor) -> torch.Tensor:
         """``u_e^T K0 u_e`` ``(B, L, n_elements)`` of displacements ``(B, L, n_dofs)``: twice the strain
-        energy of each element at unit modulus (zero at the elements the CG methods leave out, on
-        a device where they solve)."""
+        energy of each element at unit modulus (zero at the elements left out)."""
         d = self._torch_data(U.device)
         Ue = U[:, :, d.edof]
         energy = (torch.matmul(Ue, d.K0) * Ue).sum(-1)
-        if self.resolved_method(U.device) != "direct" and d.active.numel() < self.grid.n_elements:
+        if d.active.numel() < self.grid.n_elements:
             energy = torch.where(torch.as_tensor(self.active, device=U.device), energy, 0.0)
         return energy
 
