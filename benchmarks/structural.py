@@ -2,7 +2,8 @@
 
     python benchmarks/structural.py simp        # the half MBB beam, 60 x 20, against the 88-line code
     python benchmarks/structural.py solver      # direct vs CG, batched vs one by one (ratios, interleaved)
-    python benchmarks/structural.py multigrid   # the bracket's four load cases: CG's two preconditioners
+    python benchmarks/structural.py multigrid   # the bracket's four load cases: CG's preconditioners
+    python benchmarks/structural.py direct      # the same by the direct method (PARDISO)
     python benchmarks/structural.py mbb RUN     # a run of a structural problem against SIMP on the same problem
     python benchmarks/structural.py grids RUN   # the run's exported shapes and SIMP's design re-solved on other grids
 
@@ -31,6 +32,11 @@ cold (from zero) and warm (from the solve of the same designs' moduli 1 % lower:
 by CG with the multigrid V-cycle (balanced by the floating pieces' rigid motions, the code's),
 with the plain V-cycle and with the diagonal, taking turns; it prints each design's floating
 pieces per shape, the seconds, the iterations and their ratios.
+
+``direct`` solves the same designs by the direct method (PARDISO where the ``pardiso`` extra is
+installed, SuperLU otherwise: one factorisation per shape for its four load cases, the shapes side
+by side on torch's threads): the first solve (ordering, symbolic analysis and the factors' memory
+included) and the median of the next ``--blocks`` ones.
 
 ``mbb RUN`` (any structural problem's run, after ``ginn eval RUN``) prints the run's volume
 fractions and compliances from its ``metrics.json`` beside the SIMP reference of its problem
@@ -63,6 +69,7 @@ import torch
 from skimage.draw import polygon
 
 from ginn.physics import ElasticitySolver, ElementGrid, FloatingModes, Multigrid, simp
+from ginn.physics.pardiso import available as pardiso_available
 from ginn.problems import load_spec
 from ginn.problems.derived import smallest_feature
 from ginn.problems.structural import VOID, held_elements, simp_reference, structural_grid, structural_solver, void_elements
@@ -146,8 +153,9 @@ def run_solver(blocks: int) -> None:
     factorisers(blocks)
 
 
-def run_multigrid(blocks: int) -> None:
-    """The ``multigrid`` comparison of the module docstring."""
+def bracket_designs():
+    """``(problem, grid, void, designs)``: the ``bracket-loads`` problem on its training grid and
+    the ``multigrid`` comparison's two designs of 4 shapes (``{name: (4, n_elements) moduli}``)."""
     from ginn.problems.derived import smallest_feature
     from ginn.problems.loader import get_spec
 
@@ -157,6 +165,32 @@ def run_multigrid(blocks: int) -> None:
     c = grid.centres
     rho = np.stack([0.3 + 0.2 * np.sin(7 * c[:, 0] + b) * np.cos(5 * c[:, 1]) * np.sin(6 * c[:, 2] + b) for b in range(4)])
     designs = {"grey, p = 1": VOID + rho, "solid/void, p = 3": VOID + np.where(rho > 0.3, 1.0, 0.0)}
+    return problem, grid, void, designs
+
+
+def run_direct(blocks: int) -> None:
+    """The ``direct`` timing of the module docstring."""
+    problem, grid, void, designs = bracket_designs()
+    direct = structural_solver(problem, grid, "direct")[0]
+    kind = "PARDISO" if pardiso_available() else "SuperLU"
+    print(f"bracket-loads, direct ({kind}): 4 shapes x {direct.n_loads} load cases, {direct.free.size} unknowns, "
+          f"{torch.get_num_threads()} thread(s)")
+    for name, d in designs.items():
+        E = torch.as_tensor(np.where(void, VOID, d))
+        t0 = time.perf_counter()
+        direct.solve(E)
+        first = time.perf_counter() - t0
+        times = []
+        for _ in range(blocks):
+            t0 = time.perf_counter()
+            direct.solve(E)
+            times.append(time.perf_counter() - t0)
+        print(f"  {name}: first solve {first:.2f} s, then {statistics.median(times):.2f} s (median of {blocks})", flush=True)
+
+
+def run_multigrid(blocks: int) -> None:
+    """The ``multigrid`` comparison of the module docstring."""
+    problem, grid, void, designs = bracket_designs()
     solvers = {m: structural_solver(problem, grid, "cg" if m == "plain" else m)[0] for m in ("cg", "plain", "cg-diagonal")}
     plain = solvers["plain"]
     plain._mg = Multigrid(grid, plain.K0, plain.held, plain.active, floating=False)
@@ -367,11 +401,11 @@ def run_on_grids(run: Path, cells: list[int]) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("what", choices=["simp", "solver", "multigrid", "mbb", "grids"])
+    ap.add_argument("what", choices=["simp", "solver", "multigrid", "direct", "mbb", "grids"])
     ap.add_argument("run", nargs="?", type=Path, help="mbb, grids: the run directory")
     ap.add_argument("--cells", type=int, nargs="+", default=[90, 135, 180, 270, 360],
                     help="grids: elements along the longest side of each grid")
-    ap.add_argument("--blocks", type=int, default=3, help="solver: alternating blocks per configuration")
+    ap.add_argument("--blocks", type=int, default=3, help="solver, multigrid: alternating blocks per configuration; direct: timed solves after the first")
     a = ap.parse_args()
     if a.what == "simp":
         run_simp()
@@ -379,6 +413,8 @@ def main() -> None:
         run_solver(a.blocks)
     elif a.what == "multigrid":
         run_multigrid(a.blocks)
+    elif a.what == "direct":
+        run_direct(a.blocks)
     else:
         if a.run is None:
             ap.error(f"{a.what} needs the run directory")
