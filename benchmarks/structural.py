@@ -405,7 +405,8 @@ def main() -> None:
     ap.add_argument("run", nargs="?", type=Path, help="mbb, grids: the run directory")
     ap.add_argument("--cells", type=int, nargs="+", default=[90, 135, 180, 270, 360],
                     help="grids: elements along the longest side of each grid")
-    ap.add_argument("--blocks", type=int, default=3, help="solver, multigrid: alternating blocks per configuration; direct: timed solves after the first")
+    ap.add_argument("--blocks", type=int, default=3, help="solver, multigrid: alternating blocks per configuration; "
+                    "direct: timed solves after the first")
     a = ap.parse_args()
     if a.what == "simp":
         run_simp()
