@@ -10,9 +10,10 @@ grid (29,205 unknowns) a factorisation took 0.44 s on one thread against SuperLU
 A :class:`PardisoCholesky` serves every matrix of one sparsity pattern (a grid's stiffness for any
 moduli): the ordering and symbolic analysis run once, each matrix is then a numeric factorisation,
 and the factor's memory stays allocated between them (a fresh analysis, allocation and
-factorisation per matrix took 0.98 s on that grid). Each call runs on one MKL thread, set for the calling thread only, so that the
-shapes of a batch factorise side by side on the solver's threads and a shape's solution is the same
-bit for bit on any thread count (two MKL threads per factorisation give other round-off).
+factorisation per matrix took 0.98 s on that grid). Each call runs on one MKL thread, set for the
+calling thread only, so that the shapes of a batch factorise side by side on the solver's threads
+and a shape's solution is the same bit for bit on any thread count (two MKL threads per
+factorisation give other round-off).
 
 Public names: :func:`available`, :class:`PardisoCholesky`.
 """

@@ -139,14 +139,14 @@ class ElasticitySolver:
     # --- assembly -------------------------------------------------------------------------------
 
     def _sparsity(self) -> tuple:
-        """The CSR pattern of the free-dof matrix and, per kept (element, a, b) entry, its slot
-        (the elements left out included: their moduli are zero in :meth:`stiffness`)."""
+        """The CSR pattern of the free-dof matrix and, per kept (active element, a, b) entry, its
+        slot (the elements left out add no entries: no fill the factorisation would carry)."""
         if self._pattern is None:
             g = self.grid
             k = self.K0.shape[0]
             index = np.full(g.n_dofs, -1, dtype=np.int64)
             index[self.free] = np.arange(self.free.size)
-            edof = index[g.element_dofs]  # (ne, k)
+            edof = index[g.element_dofs[self.active]]  # (n_active, k)
             rows = np.repeat(edof, k, axis=1).reshape(-1)
             cols = np.tile(edof, (1, k)).reshape(-1)
             keep = (rows >= 0) & (cols >= 0)
@@ -162,7 +162,7 @@ class ElasticitySolver:
         keep, slot, indices, indptr, nnz = self._sparsity()
         moduli = np.asarray(moduli, dtype=np.float64)
         if not self.active.all():
-            moduli = np.where(self.active, moduli, 0.0)
+            moduli = moduli[self.active]
         vals = (moduli[:, None] * self.K0.reshape(1, -1)).reshape(-1)[keep]
         data = np.bincount(slot, weights=vals, minlength=nnz)
         n = self.free.size
