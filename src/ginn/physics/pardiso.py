@@ -4,13 +4,13 @@ The 3D direct method of :class:`~ginn.physics.solve.ElasticitySolver` factorises
 stiffness with it when :func:`available` (``pypardiso``, which loads MKL's runtime library from
 the ``mkl`` wheel; x86-64 only), and with SciPy's SuperLU otherwise. PARDISO orders the unknowns by
 nested dissection (METIS) and factorises supernodes with dense kernels: on the ``bracket-loads``
-grid (29,205 unknowns) a factorisation took 0.44 s on one thread against SuperLU's 18 s
+grid (29,205 unknowns) a factorisation took 0.45 s on one thread against SuperLU's 18 s
 (``docs/structural.md``, "The solver").
 
 A :class:`PardisoCholesky` serves every matrix of one sparsity pattern (a grid's stiffness for any
 moduli): the ordering and symbolic analysis run once, each matrix is then a numeric factorisation,
 and the factor's memory stays allocated between them (a fresh analysis, allocation and
-factorisation per matrix took 0.98 s on that grid). Each call runs on one MKL thread, set for the
+factorisation per matrix took 0.98 s there). Each call runs on one MKL thread, set for the
 calling thread only, so that the shapes of a batch factorise side by side on the solver's threads
 and a shape's solution is the same bit for bit on any thread count (two MKL threads per
 factorisation give other round-off).
