@@ -67,6 +67,7 @@ class _DeviceData:
     free: torch.Tensor  # (n_dofs,) 1.0 where not fixed
     forces: torch.Tensor  # (L, n_dofs)
     active: torch.Tensor  # (n_active,) the active elements' indices
+    active_mask: torch.Tensor  # (n_elements,) bool, True at the active elements
     solved: torch.Tensor  # (n_dofs,) 1.0 where the CG methods solve (not held)
     active_edof: torch.Tensor  # (n_active, k) the active elements' degrees of freedom
 
@@ -296,6 +297,7 @@ class ElasticitySolver:
                 free=torch.as_tensor(~self.fixed, device=device, dtype=torch.float64),
                 forces=torch.as_tensor(self.forces, device=device),
                 active=torch.as_tensor(np.flatnonzero(self.active), device=device),
+                active_mask=torch.as_tensor(self.active, device=device),
                 solved=torch.as_tensor(~self.held, device=device, dtype=torch.float64),
                 active_edof=torch.as_tensor(self.grid.element_dofs[self.active], device=device),
             )
@@ -384,7 +386,7 @@ class ElasticitySolver:
         Ue = U[:, :, d.edof]
         energy = (torch.matmul(Ue, d.K0) * Ue).sum(-1)
         if d.active.numel() < self.grid.n_elements:
-            energy = torch.where(torch.as_tensor(self.active, device=U.device), energy, 0.0)
+            energy = torch.where(d.active_mask, energy, 0.0)
         return energy
 
     def work(self, U: torch.Tensor) -> torch.Tensor:
