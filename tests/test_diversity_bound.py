@@ -10,7 +10,7 @@ import torch
 
 from ginn import runs
 from ginn.eval.metrics import diversity_from_matrix
-from ginn.losses.diversity import boundary_distances, distance_matrix, mean_diversity
+from ginn.losses.diversity import boundary_distances, distance_matrix, mean_diversity, shape_shares
 from ginn.problems.derived import length_scale
 from ginn.tasks.shape import ShapeTask
 
@@ -106,8 +106,46 @@ def test_the_term_is_the_shortfall_below_the_bound(bound):
     loss = term.loss(batch)
     delta = _expected([0.3, 0.4, 0.5])  # 0.1276: met at 0.05, short at 0.2
     assert float(batch.diagnostics["_diversity_mean"]) == pytest.approx(delta, rel=0.01)  # 384 samples a shape
-    est = float(batch.diagnostics["_diversity_mean"])
-    assert float(loss.detach()) == pytest.approx(max(0.0, 1.0 - est / bound), abs=1e-12)
+    # each shape's own mean distance to the others: sqrt(2) (0.15, 0.1, 0.15) = 0.212, 0.141, 0.212;
+    # at 0.2 only the middle ring is short, by 0.293, a third of which is the set's loss
+    want = np.maximum(0.0, 1.0 - _shares([0.3, 0.4, 0.5]) / bound).mean()
+    assert float(loss.detach()) == pytest.approx(want, rel=0.02, abs=1e-12)
+    assert (float(loss.detach()) > 0.09) == (bound == 0.2)
+
+
+def _shares(radii):
+    """Each concentric circle's mean distance to the others, ``sqrt(2) mean_j |r_i - r_j|``."""
+    r = np.asarray(radii)
+    return math.sqrt(2.0) * np.abs(r[:, None] - r[None, :]).sum(axis=1) / (len(r) - 1)
+
+
+def test_shape_shares_are_the_rows_equation_6_aggregates():
+    g = np.random.default_rng(1)
+    A = g.uniform(0.0, 1.0, (5, 5))
+    D = A + A.T
+    np.fill_diagonal(D, 7.0)  # ignored
+    rows = shape_shares(torch.as_tensor(D)).numpy()
+    assert np.allclose(rows, (D.sum(axis=1) - 7.0) / 4, rtol=1e-14)
+    assert float(np.sqrt(rows).mean() ** 2) == pytest.approx(float(mean_diversity(torch.as_tensor(D))), rel=1e-14)
+
+
+def test_every_shape_holds_its_share_of_the_bound():
+    """The shortfall is each shape's own: on three shapes in a row whose set meets the bound, the
+    middle one (mean distance 1.005 to the ends, under 1.2) is short, and its term moves it off
+    the line (no pull along it, where its mean distance cannot grow) and the ends away from it."""
+    h = 0.1
+    p = torch.tensor([[-1.0, 0.0], [0.0, h], [1.0, 0.0]], dtype=torch.float64, requires_grad=True)
+    D = (p[:, None, :] - p[None, :, :]).norm(dim=-1)
+    assert float(mean_diversity(D.detach())) > 1.2  # the set's equation 6 meets the bound ...
+    loss = torch.relu(1.0 - shape_shares(D) / 1.2).mean()
+    middle = math.sqrt(1.0 + h * h)  # ... but the middle shape's share does not
+    assert float(loss.detach()) == pytest.approx((1.0 - middle / 1.2) / 3, rel=1e-12)
+    loss.backward()
+    g = p.grad
+    assert float(g[1, 0]) == pytest.approx(0.0, abs=1e-15)
+    assert float(g[1, 1]) == pytest.approx(-h / middle / (3 * 1.2), rel=1e-12)  # descent lifts it
+    assert float(g[0, 0]) == pytest.approx(1.0 / middle / (2 * 3 * 1.2), rel=1e-12)  # the ends move out
+    assert float(g[2, 0]) == pytest.approx(-float(g[0, 0]), rel=1e-12)
 
 
 def test_a_least_diversity_weighs_its_shortfall_like_a_volume_fraction():
@@ -155,7 +193,9 @@ def test_a_check_calibrates_the_term_on_the_verdicts_measurement():
     assert term.calibration == pytest.approx(est / 0.15)
     batch = task.draw_batch(3, {"diversity"}, torch.Generator().manual_seed(0), Z)
     batch.evaluate(Rings())
-    assert float(term.loss(batch).detach()) == pytest.approx(0.25)  # the shortfall the verdict sees
+    # the shortfall the verdict would see: each share as the verdict measures it, against 0.2
+    want = np.maximum(0.0, 1.0 - _shares([0.3, 0.4, 0.5]) * (0.15 / est) / 0.2).mean()
+    assert float(term.loss(batch).detach()) == pytest.approx(want, rel=0.02)
     again = next(c for c in _cantilever_task(0.2).constraints if c.name == "diversity")
     again.load_state_dict(term.state_dict())
     assert again.calibration == term.calibration and again.estimate() == term.estimate()

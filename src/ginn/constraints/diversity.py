@@ -7,15 +7,25 @@ evaluates only the nearest pairs; :func:`ginn.losses.diversity.diversity` for th
 
 Where the spec states ``tolerances.diversity``, the verdict bounds the set,
 ``diversity_mean >= tolerances.diversity * unit_scale`` (equation 6 over the chamfer distances
-of equation 5), and the term is that constraint rather than an objective: its loss is the
-shortfall ``relu(1 - delta_mean / bound)``, ``delta_mean`` the verdict's aggregation (equation 6,
-:func:`ginn.losses.diversity.mean_diversity`) of the chamfer distances between the shapes'
-boundary samples (:func:`ginn.losses.diversity.boundary_distances`: each sample's distance to the
-nearest sample of the other shape, with the boundary sensitivity as its gradient), so that it
-reads the set as the verdict does. Once the set is as diverse as asked the term is zero
-and the other objectives (a compliance) choose the shapes: maximising the diversity instead
-pushed every shape away from its nearest neighbour whatever the cost. The run logs
-``_diversity_mean``, the training estimate.
+of equation 5), and the term is that constraint rather than an objective, held by every shape:
+its loss is the mean over the step's shapes of ``relu(1 - m_i / bound)``, ``m_i`` shape ``i``'s
+mean distance to the others (:func:`ginn.losses.diversity.shape_shares`, the rows that equation 6
+aggregates, so that the set meets the verdict's bound once every shape does) from the chamfer
+distances between the shapes' boundary samples (:func:`ginn.losses.diversity.boundary_distances`:
+each sample's distance to the nearest sample of the other shape, with the boundary sensitivity as
+its gradient). Once every shape is as far from the rest as asked the term is zero and the other
+objectives (a compliance) choose the shapes: maximising the diversity instead pushed every shape
+away from its nearest neighbour whatever the cost.
+
+Why each shape's share rather than the set's: the set's ``delta_mean`` is met as well by a family
+that runs along one direction as by one that bends round its middle, and a shortfall on the set
+pushes its end shapes hardest (on a line, a point's gradient of the summed distances grows with
+its rank from the middle), so a family of one latent spread to a bound stretched into a segment
+whose ends were its worst shapes (``docs/structural.md``, "Sixteen shapes"). A shape in the middle
+of a segment has half the mean distance of an end shape, so the shortfall on its own share pushes
+it off the segment, across it (along it its mean distance does not change), and the family bends:
+for the same ``delta_mean`` its shapes stay nearer their middle. The run logs
+``_diversity_mean``, the training estimate of the set's ``delta_mean``.
 
 The estimate and the verdict still differ: the verdict samples the extracted boundaries
 uniformly and measures exact distances, where the step has its own boundary samples (a 16-shape
@@ -34,7 +44,7 @@ import torch
 from torch import Tensor
 
 from .. import fields
-from ..losses.diversity import aggregate, boundary_distances, distance_matrix, diversity, diversity_nearest, mean_diversity
+from ..losses.diversity import aggregate, boundary_distances, distance_matrix, diversity, diversity_nearest, mean_diversity, shape_shares
 from ..problems.problem import Problem
 from ..train.distributed import cross_values_sharded
 from .base import Constraint, Setting, Stage
@@ -95,7 +105,8 @@ class Diversity(Constraint):
         return self._verdict
 
     def shortfall(self, batch: Batch) -> Tensor:
-        """``relu(1 - delta_mean / bound)`` of the step's shapes (module docstring)."""
+        """The mean over the step's shapes of ``relu(1 - m_i / bound)``, ``m_i`` each shape's mean
+        distance to the others (module docstring)."""
         srf = batch.surface()
         Xf = srf.x.reshape(-1, batch.d)
         v = fields.evaluate(batch.model, Xf, batch.latents_of(srf.x), grad=True, create_graph=True)
@@ -105,11 +116,12 @@ class Diversity(Constraint):
             x, g = ctx.all_gather_cat(x.detach(), dim=0), ctx.all_gather_cat(g, dim=0)
             mask = ctx.all_gather_cat(mask.to(torch.uint8), dim=0).bool()
             f = ctx.all_gather_cat_autograd(f, dim=0)
-        delta = mean_diversity(distance_matrix(boundary_distances(x, mask, f, g), mask))
+        D = distance_matrix(boundary_distances(x, mask, f, g), mask)
+        delta = mean_diversity(D)
         batch.diagnostics["_diversity_mean"] = delta.detach()
         avg, n = self.average
         self.average = [self.AVERAGE * avg + (1.0 - self.AVERAGE) * delta.detach(), n + 1]
-        return torch.relu(1.0 - delta / (self.calibration * self._verdict.bound))
+        return torch.relu(1.0 - shape_shares(D) / (self.calibration * self._verdict.bound)).mean()
 
     def estimate(self) -> float | None:
         """The bias-corrected running average of the training estimate (None before a step)."""

@@ -226,15 +226,22 @@ def diversity_nearest(
     return nearest.clamp_min(_TINY).pow(p).sum().pow(1.0 / p)
 
 
+def shape_shares(D: Tensor) -> Tensor:
+    """Each shape's mean distance to the others, ``(1/(S-1)) sum_{j != i} D_ij``, of a distance
+    matrix ``(S, S)`` (diagonal ignored) -> ``(S,)``: the rows that equation 6 aggregates."""
+    S = D.shape[0]
+    if S < 2:
+        return D.new_zeros((S,))
+    eye = torch.eye(S, dtype=torch.bool, device=D.device)
+    return D.masked_fill(eye, 0.0).sum(dim=1) / (S - 1)
+
+
 def mean_diversity(D: Tensor) -> Tensor:
     """Equation 6, ``[mean_i ((1/(S-1)) sum_{j != i} D_ij)^(1/2)]^2``, of a distance matrix ``(S, S)``
     (diagonal ignored) -> scalar: the aggregation ``ginn eval`` reports as ``diversity_mean``."""
-    S = D.shape[0]
-    if S < 2:
+    if D.shape[0] < 2:
         return D.new_zeros(())
-    eye = torch.eye(S, dtype=torch.bool, device=D.device)
-    rows = D.masked_fill(eye, 0.0).sum(dim=1) / (S - 1)
-    return rows.clamp_min(_TINY).sqrt().mean().square()
+    return shape_shares(D).clamp_min(_TINY).sqrt().mean().square()
 
 
 def boundary_distances(x: Tensor, mask: Tensor | None, f: Tensor, grad: Tensor, chunk: int = 1 << 24) -> Tensor:
