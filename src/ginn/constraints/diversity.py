@@ -30,7 +30,7 @@ for the same ``delta_mean`` its shapes stay nearer their middle. The run logs
 The estimate and the verdict still differ: the verdict samples the extracted boundaries
 uniformly and measures exact distances, where the step has its own boundary samples (a 16-shape
 cantilever 700 iterations into its run: the estimate 0.118, the verdict 0.095). So each feasibility
-check calibrates the term: the bound it holds the estimate to is the verdict's bound times the
+check calibrates the term: the bound it holds each share's estimate to is the verdict's bound times the
 estimate's running average (:attr:`Diversity.AVERAGE`) over the verdict's measurement of the
 reported shapes (:meth:`Diversity.checked`; 1 before the first check and without checks).
 """
