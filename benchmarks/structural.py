@@ -16,12 +16,15 @@ volume fraction and the seconds.
 
 ``solver`` times solves of one grey-free solid/void design (void modulus 1e-6) with each method on
 2D and 3D grids, a batch of 8 shapes solved by CG in one call against the same 8 one by one, and
-the 2D direct method's factoriser (LAPACK's band Cholesky, the shapes side by side on torch's
-threads, each on one BLAS thread) on the 16 shapes of a 90 x 60 batch against SciPy's SuperLU and
+the 2D direct method's factoriser (LAPACK's band Cholesky called without the interpreter lock,
+the shapes side by side on torch's threads, each on one BLAS thread) on the 16 shapes of a 90 x 60
+batch against SciPy's SuperLU and
 QDLDL (``pip install qdldl``: the sparse ``L D L^T`` with an approximate-minimum-degree ordering,
 its symbolic analysis reused; where it is installed, also one matrix on one thread from 90 x 30
 to 360 x 240 elements), both on torch's threads, and (with more than one torch thread) against
-the band's shapes one after another on one BLAS thread and on as many BLAS threads as torch's;
+the same band through ``scipy.linalg.lapack``'s wrappers side by side (they hold the interpreter
+lock) and the band's shapes one after another on one BLAS thread and on as many BLAS threads as
+torch's;
 the configurations take turns block by block and the script prints medians and ratios.
 
 ``multigrid`` solves the ``bracket-loads`` problem's four load cases for 4 shapes on its training
@@ -257,10 +260,12 @@ def band_sizes(blocks: int) -> None:
 
 
 def factorisers(blocks: int) -> None:
-    """The 2D direct method's factoriser (``ElasticitySolver``: LAPACK's band Cholesky, the shapes
-    side by side on torch's threads on one BLAS thread each, one refinement step) against SuperLU
-    and QDLDL (on torch's threads, QDLDL where installed) and against the band's shapes one after
-    another, for the 16 shapes of a 90 x 60 batch."""
+    """The 2D direct method's factoriser (``ElasticitySolver``: LAPACK's band Cholesky called
+    without the interpreter lock, the shapes side by side on torch's threads on one BLAS thread
+    each, one refinement step) against SuperLU and QDLDL (on torch's threads, QDLDL where
+    installed), against the same band through ``scipy.linalg.lapack`` (which holds the lock) side
+    by side, and against the band's shapes one after another, for the 16 shapes of a 90 x 60
+    batch."""
     from scipy.linalg import lapack
     from threadpoolctl import ThreadpoolController
 
@@ -274,17 +279,23 @@ def factorisers(blocks: int) -> None:
     def superlu(b: int) -> np.ndarray:
         return spla.splu(s.stiffness(batch[b].numpy()).tocsc(), permc_spec="MMD_AT_PLUS_A").solve(F)
 
-    def band(b: int) -> np.ndarray:
+    def band(b: int) -> np.ndarray:  # the solver's steps through SciPy's wrappers
+        K = s.stiffness(batch[b].numpy())
         ab = np.zeros((w + 1, order.size), order="F")
-        ab.reshape(-1, order="F")[slots] = s.stiffness(batch[b].numpy()).data[upper]
+        ab.reshape(-1, order="F")[slots] = K.data[upper]
         cf, _ = lapack.dpbtrf(ab, lower=0, overwrite_ab=1)
         x = np.empty_like(F)
         x[order] = lapack.dpbtrs(cf, F[order], lower=0)[0]
+        x[order] += lapack.dpbtrs(cf, (F - K @ x)[order], lower=0)[0]
         return x
 
     def band_in_turn(blas_threads: int) -> list:
         with blas.limit(limits=blas_threads, user_api="blas"):
             return [band(b) for b in range(16)]
+
+    def band_side_by_side() -> list:  # SciPy's wrappers, which hold the interpreter lock
+        with blas.limit(limits=1, user_api="blas"):
+            return list(pool.map(band, range(16)))
 
     runs = {"band": lambda: s.solve(batch), "SuperLU": lambda: list(pool.map(superlu, range(16)))}
     try:
@@ -307,6 +318,7 @@ def factorisers(blocks: int) -> None:
 
         runs["QDLDL"] = lambda: list(pool.map(qdldl_chunk, range(threads)))
     if threads > 1:
+        runs["band through scipy.linalg.lapack, side by side"] = band_side_by_side
         runs["band, one shape after another"] = partial(band_in_turn, 1)
         runs[f"band, one shape after another on {threads} BLAS threads"] = partial(band_in_turn, threads)
     timed: dict[str, list[float]] = {k: [] for k in runs}

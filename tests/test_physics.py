@@ -200,6 +200,63 @@ def test_band_follows_the_short_axis_and_solves_either_orientation():
     assert out[0] == pytest.approx(out[1], rel=1e-10)
 
 
+def _band_case(n: int = 40, w: int = 4, seed: int = 0) -> np.ndarray:
+    """LAPACK's upper band storage ``(w + 1, n)`` of a random diagonally dominant SPD band matrix."""
+    rng = np.random.default_rng(seed)
+    ab = rng.uniform(-1.0, 1.0, (w + 1, n))
+    ab[w] = 2.0 * (w + 1)
+    return np.asfortranarray(ab)
+
+
+def test_band_cholesky_without_the_lock_equals_scipys_wrappers(monkeypatch):
+    """The 2D direct method's band Cholesky, called through SciPy's LAPACK pointers with the
+    interpreter lock released, gives SciPy's wrappers' factor and solutions bit for bit, solves
+    the system to round-off, reports a matrix that is not positive definite as LAPACK does, and
+    its fallback (the wrappers themselves) gives the same bits."""
+    from scipy.linalg import lapack
+
+    from ginn.physics import band
+
+    assert band.releases_gil()  # the SciPy that ginn installs exports the pointers
+    ab = _band_case()
+    b = np.random.default_rng(1).normal(size=(40, 3))
+    ref, info = lapack.dpbtrf(ab.copy(order="F"), lower=0)
+    cf, info2 = band.factor(ab.copy(order="F"))
+    assert info == info2 == 0 and np.array_equal(cf, ref)
+    x = band.solve(cf, b)
+    assert np.array_equal(x, lapack.dpbtrs(ref, b, lower=0)[0])
+    assert np.array_equal(band.solve(cf, b[:, 0]), lapack.dpbtrs(ref, b[:, 0], lower=0)[0])
+    n, w = ab.shape[1], ab.shape[0] - 1
+    A = np.zeros((n, n))
+    for i in range(n):
+        for j in range(i, min(n, i + w + 1)):
+            A[i, j] = A[j, i] = ab[w + i - j, j]
+    assert np.abs(A @ x - b).max() <= 1e-13 * np.abs(b).max()
+    bad = ab.copy(order="F")
+    bad[w, 7] = -1.0  # the leading minor of order 8 is not positive definite
+    assert band.factor(bad.copy(order="F"))[1] == lapack.dpbtrf(bad.copy(order="F"), lower=0)[1] == 8
+    with pytest.raises(ValueError, match="Fortran"):
+        band.factor(np.ascontiguousarray(ab))
+    monkeypatch.setattr(band, "_routines", lambda: None)
+    cf3, info3 = band.factor(ab.copy(order="F"))
+    assert info3 == 0 and np.array_equal(cf3, ref) and np.array_equal(band.solve(cf3, b), x)
+
+
+def test_direct_batch_on_threads_equals_one_by_one():
+    """The 2D direct method's shapes side by side on two threads give each shape's solve alone
+    bit for bit."""
+    g, direct = _small_case(2, method="direct")
+    E = torch.tensor(np.random.default_rng(6).uniform(1e-3, 1.0, (5, g.n_elements)), dtype=torch.float64)
+    before = torch.get_num_threads()
+    try:
+        torch.set_num_threads(2)
+        U = direct.solve(E)
+    finally:
+        torch.set_num_threads(before)
+    for b in range(5):
+        assert torch.equal(direct.solve(E[b])[0], U[b])
+
+
 def test_bad_moduli_refused():
     g, s = _small_case(2)
     with pytest.raises(ValueError, match="positive"):

@@ -4,6 +4,8 @@ classic SIMP optimiser used as the reference of the structural results.
 
 Modules: :mod:`~ginn.physics.elements` (element matrices), :mod:`~ginn.physics.grid` (the element
 grid), :mod:`~ginn.physics.solve` (the solver: sparse direct, batched matrix-free CG),
+:mod:`~ginn.physics.band` (its 2D factoriser: LAPACK's band Cholesky without the interpreter lock),
+:mod:`~ginn.physics.pardiso` (its 3D factoriser where MKL is installed),
 :mod:`~ginn.physics.multigrid` (CG's geometric multigrid preconditioner),
 :mod:`~ginn.physics.floating` (the rigid motions of floating pieces, which balance its cycle),
 :mod:`~ginn.physics.compliance` (the differentiable compliance), :mod:`~ginn.physics.simp` (the

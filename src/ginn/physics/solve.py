@@ -13,7 +13,8 @@ Two methods solve ``K u = f``:
   matrices into a precomputed pattern), factorised once per shape and solved for every load case,
   then one step of iterative refinement. In 2D it is a band: the nodes numbered with the grid's
   shortest axis fastest, the matrix has half-bandwidth at most ``2 n_short + 5`` and LAPACK's band
-  Cholesky (``dpbtrf``/``dpbtrs``) factorises it; in 3D, where a band would be a plane of nodes
+  Cholesky (``dpbtrf``/``dpbtrs``, called without the interpreter lock: :mod:`ginn.physics.band`)
+  factorises it; in 3D, where a band would be a plane of nodes
   wide, MKL's PARDISO (:mod:`ginn.physics.pardiso`, nested dissection and supernodes) factorises
   the sparse matrix where it is installed, SciPy's SuperLU (minimum-degree ordering of
   ``A^T + A``) otherwise. The shapes of a batch run side by side on as many threads as torch uses
@@ -42,9 +43,9 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 import torch
-from scipy.linalg import lapack
 from threadpoolctl import ThreadpoolController
 
+from . import band
 from .elements import element_stiffness
 from .grid import ElementGrid
 from .multigrid import Multigrid
@@ -278,12 +279,12 @@ class ElasticitySolver:
             K = self.stiffness(moduli)
             ab = np.zeros((w + 1, order.size), order="F")
             ab.reshape(-1, order="F")[slots] = K.data[upper]
-            cf, info = lapack.dpbtrf(ab, lower=0, overwrite_ab=1)
+            cf, info = band.factor(ab)
             if info != 0:
                 raise RuntimeError(f"ElasticitySolver: the stiffness is not positive definite (LAPACK dpbtrf info {info})")
             x = np.empty_like(F)
-            x[order] = lapack.dpbtrs(cf, Fb, lower=0)[0]
-            x[order] += lapack.dpbtrs(cf, (F - K @ x)[order], lower=0)[0]
+            x[order] = band.solve(cf, Fb)
+            x[order] += band.solve(cf, (F - K @ x)[order])
             return x
 
         return solve_one
