@@ -10,7 +10,7 @@ import torch
 
 from ginn import runs
 from ginn.eval.metrics import diversity_from_matrix
-from ginn.losses.diversity import boundary_distances, distance_matrix, mean_diversity, shape_shares
+from ginn.losses.diversity import boundary_distances, distance_matrix, mean_diversity, shape_shares, take
 from ginn.problems.derived import length_scale
 from ginn.tasks.shape import ShapeTask
 
@@ -66,6 +66,33 @@ def test_boundary_distances_of_concentric_circles_and_their_gradient():
         dn[s] -= eps
         fd = (_expected(up) - _expected(dn)) / (2 * eps)
         assert float(radii.grad[s]) == pytest.approx(fd, rel=1e-6, abs=1e-9)
+
+
+def test_take_has_one_gradient_on_any_thread_count():
+    """Many samples share a nearest sample of another shape, so the distances gather the field's
+    values with repeated indices. ``take``'s gradient adds the repeats one after another: the same
+    on every call on two threads, and on one thread the same bits as plain indexing's."""
+    g = torch.Generator().manual_seed(0)
+    S, m = 16, 512
+    src = torch.randn(S, m, generator=g)
+    index = torch.arange(S)[None, :, None] * m + torch.randint(0, m, (S, S, m), generator=g)
+    w = torch.randn(S, S, m, generator=g)
+
+    def grad(gather) -> torch.Tensor:
+        x = src.clone().requires_grad_(True)
+        return torch.autograd.grad((gather(x) * w).sum(), x)[0]
+
+    before = torch.get_num_threads()
+    try:
+        torch.set_num_threads(1)
+        plain = grad(lambda x: x.reshape(-1)[index])
+        assert torch.equal(grad(lambda x: take(x, index)), plain)
+        torch.set_num_threads(2)
+        for _ in range(5):
+            assert torch.equal(grad(lambda x: take(x, index)), plain)
+    finally:
+        torch.set_num_threads(before)
+    assert torch.equal(take(src, index), src.reshape(-1)[index])
 
 
 def test_a_copy_sampled_elsewhere_is_at_its_sagitta_and_an_end_at_its_distance():

@@ -226,6 +226,34 @@ def diversity_nearest(
     return nearest.clamp_min(_TINY).pow(p).sum().pow(1.0 / p)
 
 
+class _Take(torch.autograd.Function):
+    """``src.reshape(-1)[index]`` whose gradient adds the duplicates of ``index`` in their order.
+
+    The gradient of advanced indexing adds the values of repeated indices on several threads at
+    once on the CPU, in an order that changes from one call to the next: the same step gave other
+    weights on every run on two threads. A one-dimensional ``index_add_`` adds them one after
+    another, as the indexing's gradient does on one thread (the same bits there)."""
+
+    @staticmethod
+    def forward(ctx, src: Tensor, index: Tensor) -> Tensor:
+        ctx.save_for_backward(index)
+        ctx.shape = src.shape
+        return src.reshape(-1)[index]
+
+    @staticmethod
+    def backward(ctx, grad: Tensor):
+        (index,) = ctx.saved_tensors
+        out = grad.new_zeros(ctx.shape.numel())
+        out.index_add_(0, index.reshape(-1), grad.reshape(-1))
+        return out.view(ctx.shape), None
+
+
+def take(src: Tensor, index: Tensor) -> Tensor:
+    """``src.reshape(-1)[index]`` (``index``: flat positions, any shape), its gradient the same on
+    every call and thread count (:class:`_Take`)."""
+    return _Take.apply(src, index)
+
+
 def shape_shares(D: Tensor) -> Tensor:
     """Each shape's mean distance to the others, ``(1/(S-1)) sum_{j != i} D_ij``, of a distance
     matrix ``(S, S)`` (diagonal ignored) -> ``(S,)``: the rows that equation 6 aggregates."""
@@ -293,6 +321,7 @@ def boundary_distances(x: Tensor, mask: Tensor | None, f: Tensor, grad: Tensor, 
         tangent = along.abs() >= dist - h[j, k]
         u = torch.where(tangent[..., None], along.sign()[..., None] * ny, r / dist.clamp_min(_TINY)[..., None])
         d0 = torch.where(tangent, along.abs(), dist - h[j, k])
+        at_y = j * m + k  # (S_i, S_j, m): y's flat position among the samples
     mine = moved[:, None] * (n[:, None] * u).sum(-1)  # shape i's sample moves
-    other = moved[j, k] * (ny * u).sum(-1)  # shape j's boundary moves at y
+    other = take(moved, at_y) * (ny * u).sum(-1)  # shape j's boundary moves at y
     return d0 + other - mine
