@@ -2,6 +2,7 @@
 
     python benchmarks/structural.py simp        # the half MBB beam, 60 x 20, against the 88-line code
     python benchmarks/structural.py solver      # direct vs CG, batched vs one by one (ratios, interleaved)
+    python benchmarks/structural.py factorisers # the last part of solver alone: the 2D factorisers
     python benchmarks/structural.py multigrid   # the bracket's four load cases: CG's preconditioners
     python benchmarks/structural.py direct      # the same by the direct method (PARDISO)
     python benchmarks/structural.py mbb RUN     # a run of a structural problem against SIMP on the same problem
@@ -26,6 +27,7 @@ the same band through ``scipy.linalg.lapack``'s wrappers side by side (they hold
 lock) and the band's shapes one after another on one BLAS thread and on as many BLAS threads as
 torch's;
 the configurations take turns block by block and the script prints medians and ratios.
+``factorisers`` runs that last comparison alone (on torch's default thread count).
 
 ``multigrid`` solves the ``bracket-loads`` problem's four load cases for 4 shapes on its training
 grid (derived from its smallest interface, as ``ginn train`` derives it), each design E's elements
@@ -413,17 +415,19 @@ def run_on_grids(run: Path, cells: list[int]) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("what", choices=["simp", "solver", "multigrid", "direct", "mbb", "grids"])
+    ap.add_argument("what", choices=["simp", "solver", "factorisers", "multigrid", "direct", "mbb", "grids"])
     ap.add_argument("run", nargs="?", type=Path, help="mbb, grids: the run directory")
     ap.add_argument("--cells", type=int, nargs="+", default=[90, 135, 180, 270, 360],
                     help="grids: elements along the longest side of each grid")
-    ap.add_argument("--blocks", type=int, default=3, help="solver, multigrid: alternating blocks per configuration; "
+    ap.add_argument("--blocks", type=int, default=3, help="solver, factorisers, multigrid: alternating blocks per configuration; "
                     "direct: timed solves after the first")
     a = ap.parse_args()
     if a.what == "simp":
         run_simp()
     elif a.what == "solver":
         run_solver(a.blocks)
+    elif a.what == "factorisers":
+        factorisers(a.blocks)
     elif a.what == "multigrid":
         run_multigrid(a.blocks)
     elif a.what == "direct":
