@@ -77,7 +77,16 @@ from ginn.physics import ElasticitySolver, ElementGrid, FloatingModes, Multigrid
 from ginn.physics.pardiso import available as pardiso_available
 from ginn.problems import load_spec
 from ginn.problems.derived import smallest_feature
-from ginn.problems.structural import VOID, held_elements, simp_reference, structural_grid, structural_solver, void_elements
+from ginn.problems.structural import (
+    VOID,
+    design_on,
+    design_shares,
+    held_elements,
+    simp_reference,
+    structural_grid,
+    structural_solver,
+    void_elements,
+)
 
 PUBLISHED = {("sensitivity", 2.4): 216.81, ("density", 2.4): 233.71}
 
@@ -343,11 +352,12 @@ def run_against_simp(run: Path) -> None:
     problem = load_spec(run / "problem.yaml").build()
     t = time.perf_counter()
     ref = simp_reference(problem)
-    print(f"SIMP reference: volume fraction {ref.solid.mean():.3f}, compliance {ref.compliance:.1f} "
+    e_volume = design_shares(problem, structural_grid(problem, 0, smallest_feature(problem))).sum()
+    print(f"SIMP reference: volume fraction {ref.solid.sum() / e_volume:.3f} of E, compliance {ref.compliance:.4g} "
           f"({ref.result.iterations} iterations, {time.perf_counter() - t:.1f} s)")
     for k, shape in enumerate(metrics["shapes"]):
         c = shape.get("compliance")
-        print(f"shape {k}: volume fraction {shape.get('volume_fraction'):.3f}, compliance {c:.1f}, "
+        print(f"shape {k}: volume fraction {shape.get('volume_fraction'):.3f}, compliance {c:.4g}, "
               f"/ SIMP {c / ref.compliance:.3f}")
 
 
@@ -364,14 +374,6 @@ def contour_mask(contours: list[np.ndarray], grid: ElementGrid) -> np.ndarray:
         i, j = polygon((c[:, 0] - lo[0]) / h[0] - 0.5, (c[:, 1] - lo[1]) / h[1] - 0.5, grid.shape)
         inside[i, j] ^= True
     return inside.reshape(-1)
-
-
-def resampled(values: np.ndarray, source: ElementGrid, grid: ElementGrid) -> np.ndarray:
-    """Per-element ``values`` ``(n_elements,)`` of ``source`` on ``grid``: each element takes the value
-    of the ``source`` element under its centre."""
-    idx = np.floor((grid.centres - np.asarray(source.lo)) / source.h).astype(int)
-    idx = np.clip(idx, 0, np.asarray(source.shape) - 1)
-    return np.asarray(values).reshape(source.shape)[tuple(idx.T)]
 
 
 def run_on_grids(run: Path, cells: list[int]) -> None:
@@ -401,7 +403,7 @@ def run_on_grids(run: Path, cells: list[int]) -> None:
         grid = structural_grid(problem, n, smallest)
         solver, w = structural_solver(problem, grid)
         void = void_elements(problem, grid)
-        solid = np.stack([resampled(ref.solid, base, grid)] + [contour_mask(c, grid) for c in shapes]) & ~void
+        solid = np.stack([design_on(problem, ref.solid, base, grid)] + [contour_mask(c, grid) & ~void for c in shapes])
         U = solver.solve(torch.as_tensor(E * np.where(solid, 1.0, VOID)))
         c = solver.work(U).numpy() @ w
         vol = solid[:, ~void].mean(axis=1)

@@ -18,7 +18,8 @@ one row: feasible shapes of all, the worst CD1 (the interface tolerance times ``
 brackets), the worst volume outside E that the verdict bounds (beyond the interface tolerance of
 the interfaces) and the worst of the paper's vol_out (all of it), the diversity, the objective's
 quality where the objective is the point of the problem (Plateau's CD2 and area against its
-reference, a structural problem's compliance), and the wall time of training and evaluation; for a
+reference, a structural problem's compliance and its ratio to the SIMP reference's), and the wall
+time of training and evaluation; for a
 generative problem also the held-out codes of its latent set that give a feasible shape and the
 smoothness of z -> shape (``ginn eval``). The last lines are the share of (problem, seed) pairs that
 end with every shape feasible and of the generative ones with at least 90 % of the held-out codes
@@ -55,7 +56,9 @@ from ginn.errors import GinnError, SpecError
 from ginn.geometry.base import Box
 from ginn.problems import ProblemSpec, load_spec
 from ginn.problems.derived import half_longest_side
+from ginn.problems.problem import Problem
 from ginn.problems.spec import TopologySpec
+from ginn.problems.structural import simp_reference
 
 HERE = Path(__file__).resolve().parent / "suite"
 BUILTIN = ["obstacle", "bracket", "plateau", "wheel"]
@@ -144,7 +147,7 @@ def run_one(problem: str, seed: int, out: Path, iterations: int | None, threads:
             "change_rate_max": metrics.get("latent_space", {}).get("change_rate_max"),
             "topology_changes": metrics.get("latent_space", {}).get("topology_changes"),
             "minutes": wall / 60.0, "iterations": outcome.step,
-            "objective": objective(metrics["shapes"]),
+            "objective": objective(metrics["shapes"], outcome.task.problem),
             "holes": [m.get("b1_in_design_region") for m in metrics["shapes"]],
             "genus": [m.get("genus") for m in metrics["shapes"]],
             "thickness_removed": _values(metrics["shapes"], "thickness_removed"),
@@ -166,26 +169,36 @@ def make_line(r: dict) -> str:
     return "  " + ", ".join(parts)
 
 
-def objective(shapes: list[dict]) -> dict | None:
+def objective(shapes: list[dict], problem: Problem | None = None) -> dict | None:
     """The quality of the objective where the problem's objective is the point of it: the worst
     CD2 to the reference surface and the area's relative error furthest from 0 (a problem with a
-    reference, Plateau's), or the least and largest compliance (a structural problem); None
-    otherwise."""
+    reference, Plateau's), or the least and largest compliance and, given the ``problem``, the
+    compliance of its SIMP reference (:func:`ginn.problems.structural.simp_reference`; a structural
+    problem); None otherwise."""
     cd2 = [m["cd2_to_reference"] for m in shapes if m.get("cd2_to_reference") is not None]
     if cd2:
         err = [m["area_relative_error"] for m in shapes if m.get("area_relative_error") is not None]
         return {"cd2_to_reference": max(cd2), "area_relative_error": max(err, key=abs) if err else None}
     c = [m["compliance"] for m in shapes if m.get("compliance") is not None]
-    return {"compliance": [min(c), max(c)]} if c else None
+    if not c:
+        return None
+    out = {"compliance": [min(c), max(c)]}
+    if problem is not None and problem.physics is not None:
+        out["simp"] = simp_reference(problem).compliance
+    return out
 
 
 def objective_text(o: dict | None) -> str:
-    """``CD2 0.0050, area -1.3 %``, ``compliance 180 to 239`` or ``–``."""
+    """``CD2 0.0050, area -1.3 %``, ``compliance 180 to 239 (1.16 to 1.27 x SIMP)`` or ``–``."""
     if not o:
         return "–"
     if "compliance" in o:
         lo, hi = o["compliance"]
-        return f"compliance {lo:.4g}" if lo == hi else f"compliance {lo:.4g} to {hi:.4g}"
+        text = f"compliance {lo:.4g}" if lo == hi else f"compliance {lo:.4g} to {hi:.4g}"
+        ref = o.get("simp")
+        if ref:
+            text += f" ({lo / ref:.2f} x SIMP)" if lo == hi else f" ({lo / ref:.2f} to {hi / ref:.2f} x SIMP)"
+        return text
     err = o.get("area_relative_error")
     return f"CD2 {o['cd2_to_reference']:.2g}" + ("" if err is None else f", area {100 * err:+.1f} %")
 

@@ -53,7 +53,7 @@ def test_contour_mask_fills_outlines_and_leaves_holes():
     does and to another grid by the element under each centre."""
     st = _load("structural")
     from ginn.physics import ElementGrid
-    from ginn.problems.structural import upsample
+    from ginn.problems.structural import resampled, upsample
 
     def square(a, b):
         return np.array([[a, a], [b, a], [b, b], [a, b], [a, a]])
@@ -72,8 +72,8 @@ def test_contour_mask_fills_outlines_and_leaves_holes():
 
     coarse = ElementGrid((0.0, 0.0), (2.0, 1.0), (4, 2))
     values = np.arange(8) % 3 == 0
-    assert np.array_equal(st.resampled(values, coarse, ElementGrid((0.0, 0.0), (2.0, 1.0), (8, 4))),
+    assert np.array_equal(resampled(values, coarse, ElementGrid((0.0, 0.0), (2.0, 1.0), (8, 4))),
                           upsample(values, coarse.shape))
     other = ElementGrid((0.0, 0.0), (2.0, 1.0), (6, 3))
     ix = np.floor(other.centres[:, 0] / 0.5).astype(int) * 2 + np.floor(other.centres[:, 1] / 0.5).astype(int)
-    assert np.array_equal(st.resampled(values, coarse, other), values[ix])
+    assert np.array_equal(resampled(values, coarse, other), values[ix])

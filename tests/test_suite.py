@@ -7,6 +7,9 @@ from types import SimpleNamespace
 
 import pytest
 
+from ginn.problems import get_spec
+from ginn.problems.structural import simp_reference
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -98,6 +101,10 @@ def test_the_objective_column(suite):
     assert suite.objective_text(o) == "CD2 0.2, area -1.3 %"
     beams = [{"compliance": 150.1}, {"compliance": 180.0}, {"compliance": None}]
     assert suite.objective_text(suite.objective(beams)) == "compliance 150.1 to 180"
+    assert suite.objective_text({"compliance": [150.1, 180.0], "simp": 150.0}) == "compliance 150.1 to 180 (1.00 to 1.20 x SIMP)"
+    assert suite.objective_text({"compliance": [165.0, 165.0], "simp": 150.0}) == "compliance 165 (1.10 x SIMP)"
+    mbb = get_spec("mbb").build()
+    assert suite.objective(beams, mbb)["simp"] == pytest.approx(simp_reference(mbb).compliance, rel=1e-12)
     assert suite.objective([{"interface_cd1": 1e-3}]) is None and suite.objective_text(None) == "–"
 
 

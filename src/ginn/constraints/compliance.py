@@ -22,7 +22,9 @@ the measurements.
 
 Under a volume bound (``tolerances.volume_fraction.max``) the compliance is that of the shape
 moved onto the bound: the densities are ``sigmoid(-(f - t) / w)`` with the offset ``t <= 0`` at
-which their sum in E equals the bound's share less the volume term's margin
+which their sum in E equals the bound's share of E (obstacles included, the spec's
+``vol(shape ∩ E) / vol(E)``; each element counted up to its share of E,
+:func:`~ginn.problems.structural.design_shares`) less the volume term's margin
 (:func:`volume_margin`, :mod:`ginn.constraints.volume`; found by bisection; 0 where the shape is
 within it), and ``t`` carries its implicit gradient ``dt / df_e = r_e / sum r`` (``r = rho (1 - rho)``),
 as an optimality-criteria step holds SIMP's volume. So the compliance rewards moving material, not
@@ -55,7 +57,15 @@ from ..extract.sampling import field_dtype_device
 from ..physics import ElementGrid, compliance
 from ..problems.derived import smallest_feature
 from ..problems.problem import Problem
-from ..problems.structural import PENALTY, VOID, design_depth, structural_grid, structural_solver, void_elements
+from ..problems.structural import (
+    PENALTY,
+    VOID,
+    design_depth,
+    design_shares,
+    structural_grid,
+    structural_solver,
+    void_elements,
+)
 from .base import Constraint, Setting, Stage
 from .batch import Batch
 from .verdict import Verdict, Violation
@@ -112,8 +122,9 @@ def volume_margin(share: Tensor, in_design: Tensor) -> Tensor:
     """``(S,)``: how far inside its volume bound a shape is held, the standard error of the centre
     count of its volume fraction, ``sqrt(n_b / 12) / n_E`` for the ``n_b`` elements in E that its
     boundary crosses (each counted whole or not at all, off by a share uniform in +-1/2) out of
-    ``n_E``. ``share`` ``(S, n_elements)``: :func:`covered` (detached)."""
-    crossed = ((share > 0) & (share < 1) & in_design).sum(dim=1).to(share.dtype)
+    ``n_E``. ``share`` ``(S, n_elements)``: :func:`covered` (detached); ``in_design``
+    ``(n_elements,)``: E's share of each element (or whether it lies in E), ``n_E`` its sum."""
+    crossed = ((share > 0) & (share < 1) & (in_design > 0)).sum(dim=1).to(share.dtype)
     return (crossed / 12.0).sqrt() / in_design.sum().clamp_min(1).to(share.dtype)
 
 
@@ -208,6 +219,15 @@ class Compliance(Constraint):
         dev = setting.device
         self.weights = torch.as_tensor(w, dtype=torch.float64, device=dev)
         self.void = torch.as_tensor(void_elements(p, self.grid), device=dev)
+        shares = design_shares(p, self.grid)  # E's share of each element, obstacles included
+        self.design = torch.as_tensor(shares, dtype=setting.dtype, device=dev)
+        self.design_volume = float(shares.sum())  # vol(E) in elements
+        centres = torch.as_tensor(self.grid.centres, dtype=torch.float64)
+        blocked = np.zeros(self.grid.n_elements, bool)
+        with torch.no_grad():
+            for o in p.obstacles:
+                blocked |= o.contains(centres).cpu().numpy()
+        self.counted = torch.as_tensor((shares > 0) & ~blocked, device=dev)  # where the shape's volume in E can be
         self.centres = torch.as_tensor(self.grid.centres, dtype=setting.dtype, device=dev)
         self.final_width = 0.5 * float(self.grid.h.min())
         self.start_width = start_width(p, self.grid)
@@ -235,13 +255,15 @@ class Compliance(Constraint):
         S = f.shape[0]
         if b is None or b.max is None:
             return torch.zeros(S, 1, dtype=f.dtype, device=f.device)
-        inE = ~self.void
+        inE, share = self.counted, self.design
         with torch.no_grad():
             fd = f.detach()
-            target = (float(b.max) - volume_margin(covered(fd, self.grid), inE))[:, None] * float(inE.sum())
+            # the bound is a share of E, obstacles included; each element holds at most its share of E
+            target = (float(b.max) - volume_margin(covered(fd, self.grid), share))[:, None] * self.design_volume
 
             def mass(t: Tensor) -> Tensor:
-                return torch.where(inE, torch.sigmoid(-(fd - t) / self.width), 0.0).sum(dim=1, keepdim=True)
+                rho = torch.minimum(torch.sigmoid(-(fd - t) / self.width), share)
+                return torch.where(inE, rho, 0.0).sum(dim=1, keepdim=True)
 
             lo = fd.min(dim=1, keepdim=True).values - 40 * self.width
             hi = torch.zeros(S, 1, dtype=f.dtype, device=f.device)
@@ -253,7 +275,7 @@ class Compliance(Constraint):
                 lo = torch.where(big, lo, mid)
             t0 = torch.where(over, 0.5 * (lo + hi), torch.zeros_like(hi))
             rho = torch.where(inE, torch.sigmoid(-(fd - t0) / self.width), 0.0)
-            r = rho * (1 - rho)
+            r = torch.where(rho < share, rho * (1 - rho), 0.0)  # an element filled to its share of E adds no mass
             a = torch.where(over, r / r.sum(dim=1, keepdim=True).clamp_min(1e-30), torch.zeros_like(r))
         return t0 + (a * (f - fd)).sum(dim=1, keepdim=True)
 
