@@ -11,7 +11,7 @@ import yaml
 
 from ginn import runs
 from ginn.cli import main
-from ginn.constraints.attachment import Attachment, AttachmentVerdict
+from ginn.constraints.attachment import DEPTHS, Attachment, AttachmentVerdict
 from ginn.constraints.base import Setting
 from ginn.constraints.compliance import (
     START_PENALTY,
@@ -34,6 +34,7 @@ from ginn.problems.structural import (
     design_depth,
     design_on,
     design_shares,
+    held_corners,
     held_elements,
     held_nodes,
     simp_reference,
@@ -454,6 +455,32 @@ def test_attachment_sees_a_pad_end_rounded_off_within_a_report_element():
     solid = np.append(solid_elements(notched, None, fine, np.zeros(fine.n_elements, bool)), False)
     on_void = ~solid[held_elements(p, fine)].any(axis=1)
     assert int(on_void.sum()) == 1 and np.allclose(fine.nodes[np.flatnonzero(held_nodes(p, fine))[on_void]], [[1.5, 0.2]])
+
+
+def test_attachment_asks_nothing_inside_a_bolt_hole_that_e_does_not_cut_out():
+    """A torque on a bore whose rim is an interface with inward normals, in a disk E that does not
+    cut the bore out: the rim's nodes inside the bore are held through their report elements
+    across the rim, and the finer depths' points inside the bore (where the shape must be void)
+    are not asked for. A ring that fills E from the rim out, exactly, holds every node."""
+    hub = {"name": "hub", "geometry": {"dim": 2, "domain": {"lo": [-1, -1], "hi": [1, 1]},
+                                       "design_region": {"type": "disk", "center": [0, 0], "radius": 1.0},
+                                       "interfaces": [{"type": "circle", "center": [0, 0], "radius": 0.2},
+                                                      {"type": "circle", "center": [0.75, 0], "radius": 0.08}]},
+           "tolerances": {"volume_fraction": {"max": 0.35}},
+           "physics": {"supports": [{"interface": 1}], "loads": [{"interface": 0, "torque": 1.0}]}}
+    p = validate_spec(hub).build()
+    grid = ComplianceReport(p).fine()[0]
+    for side, _ in DEPTHS:
+        points, present = held_corners(p, grid, side * grid.h)
+        r0 = np.linalg.norm(points, axis=-1)
+        r1 = np.linalg.norm(points - np.array([0.75, 0.0]), axis=-1)
+        assert not (present & ((r0 < 0.2 - 1e-9) | (r1 < 0.08 - 1e-9))).any()  # nothing inside a hole
+        assert present.any(axis=1).sum() > 0.4 * present.shape[0]
+
+    def ring(x, z=None):  # solid outside both holes: the rims exactly on the boundary
+        return torch.maximum(0.2 - x.norm(dim=1), 0.08 - (x - torch.tensor([0.75, 0.0], dtype=x.dtype)).norm(dim=1))
+
+    assert AttachmentVerdict(p).measure(None, None, ring, None)["unheld_nodes"] == 0.0
 
 
 def test_feasibility_checks_leave_the_compliance_report_to_eval():

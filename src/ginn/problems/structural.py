@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 from scipy.ndimage import distance_transform_edt
+from scipy.spatial import cKDTree
 
 from ..errors import SpecError
 from ..geometry.base import Interface, Region
@@ -62,6 +63,31 @@ def _near(places: tuple[Interface | Region, ...], x: torch.Tensor, reach: float)
             d = where.distance(x) if isinstance(where, Interface) else where.sdf(x)
             near |= (d <= reach).cpu().numpy()
     return near
+
+
+def _beyond(interfaces: list[Interface], points: np.ndarray, reach: float) -> np.ndarray:
+    """``(n,)`` bool: which ``points`` ``(n, d)`` lie within ``reach`` of one of ``interfaces`` on the
+    side its prescribed normals point to (out of the shape: inside a bolt hole whose rim is the
+    interface), within 60 degrees of the normal at the point's nearest point on it (a point beside
+    an interface's edge is not beyond it), that normal taken from the nearest of a dense sample
+    (spacing about a twentieth of ``reach``; a part without normals has no such side)."""
+    out = np.zeros(points.shape[0], bool)
+    x = torch.as_tensor(points, dtype=torch.float64)
+    for where in interfaces:
+        if not where.has_normals:
+            continue
+        with torch.no_grad():
+            d, y = where.nearest(x)
+        close = (d <= reach).cpu().numpy()
+        if not close.any():
+            continue
+        spacing = reach / 20.0
+        n = int(min(max(where.measure() / spacing ** (where.dim - 1), 1000), 100_000))
+        pts, normals = where.sample(n, torch.Generator().manual_seed(0), dtype=torch.float64)
+        _, idx = cKDTree(pts.numpy()).query(y[close].numpy())
+        side = ((points[close] - y[close].numpy()) * normals.numpy()[idx]).sum(axis=1)
+        out[np.flatnonzero(close)[side > 0.5 * d[close].numpy()]] = True  # within 60 degrees of the normal
+    return out
 
 
 def couple(x: np.ndarray, torque: tuple[float, ...]) -> np.ndarray:
@@ -112,14 +138,29 @@ def held_elements(problem: Problem, grid: ElementGrid) -> np.ndarray:
 def held_corners(problem: Problem, grid: ElementGrid, spacing: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The centres of the elements of side ``spacing`` ``(dim,)`` that have a corner at a node of
     :func:`held_elements` (in its order): points ``(n_held, 2^dim, dim)`` and ``(n_held, 2^dim)``
-    bool, whether each lies in E and inside the domain. A grid of that spacing with a node there
-    holds the node when one of the present points is solid."""
+    bool, whether each lies in E, inside the domain and not beyond a held interface (on the side
+    its prescribed normals point to, where the shape must be void: a node of a bolt hole's rim
+    inside the hole has its finer elements' centres there when E does not cut the hole out). A
+    grid of that spacing with a node there holds the node when one of the present points is
+    solid."""
     nodes, _ = _held(problem, grid)
     signs = np.array(np.meshgrid(*[(-1.0, 1.0)] * grid.dim, indexing="ij")).reshape(grid.dim, -1).T  # (2^d, d)
     points = grid.nodes[nodes][:, None, :] + 0.5 * np.asarray(spacing, dtype=np.float64) * signs
     flat = points.reshape(-1, grid.dim)
     inside = np.all((flat > np.asarray(grid.lo)) & (flat < np.asarray(grid.hi)), axis=1) & ~void_at(problem, flat)
+    reach = float(np.linalg.norm(spacing)) + float(grid.h.max())  # the farthest corner of a held node
+    inside[inside] = ~_beyond(_held_interfaces(problem), flat[inside], reach)
     return points, inside.reshape(points.shape[:2])
+
+
+def _held_interfaces(problem: Problem) -> list[Interface]:
+    """The interfaces of every load and of every support placed on interfaces."""
+    ph = problem.physics
+    if ph is None:
+        return []
+    places = [s.where for s in ph.supports if all(isinstance(w, Interface) for w in s.where)]
+    places += [load.where for case in ph.load_cases for load in case.loads]
+    return [w for where in places for w in where if isinstance(w, Interface)]
 
 
 def _held(problem: Problem, grid: ElementGrid) -> tuple[np.ndarray, np.ndarray]:
