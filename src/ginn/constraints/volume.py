@@ -24,9 +24,9 @@ over E of the share of each element the shape covers
 element counted up to the share of it that lies in E and E's volume the sum of those shares
 (:func:`~ginn.problems.structural.design_shares`, the same model for E's signed distance; the
 obstacles in E count in it, as in the spec's denominator), with its own gradient. Counting the
-elements whose centre lies in E instead put E's area 1.2 % over its own on the mounting plate of
-``docs/examples/plate.yaml`` (90 x 50 elements): its shapes were held at the bound on that count
-and measured up to 0.006 over it on the evaluation grid. The margin ``s`` is the
+elements whose centre lies in E instead put E's area 1.2 % over its own on
+``benchmarks/suite/plate-loads-2d.yaml`` (90 x 50 elements): its shapes were held at the bound on
+that count and measured up to 0.007 over it on the evaluation grid. The margin ``s`` is the
 standard error of the plain centre count, ``sqrt(n_b / 12) / n_E`` for the ``n_b`` elements the
 boundary crosses (:func:`~ginn.constraints.compliance.volume_margin`), and the compliance term's
 offset holds its shapes the same margin inside the bound: a shape held at the bound on one grid

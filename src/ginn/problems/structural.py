@@ -198,20 +198,19 @@ def design_shares(problem: Problem, grid: ElementGrid) -> np.ndarray:
     ``d(c) +- e / 2``, ``e = sum_a h_a |g_a|``, and the share inside is ``clamp(1/2 - d(c) / e, 0, 1)``,
     the model :func:`ginn.constraints.compliance.covered` applies to the shape: exact for a face
     along a grid axis wherever it cuts the elements, where counting the elements whose centre lies
-    in E is off by up to half an element along the whole face (the mounting plate of
-    ``docs/examples/plate.yaml`` on its 90 x 50 grid: E's area 1.2 % over its own). Ones without a
-    design region."""
+    in E is off by up to half an element along the whole face (``benchmarks/suite/plate-loads-2d.yaml``
+    on its 90 x 50 grid: E's area 1.2 % over its own). Ones without a design region."""
     if problem.design_region is None:
         return np.ones(grid.n_elements)
     c = torch.as_tensor(grid.centres, dtype=torch.float64)
     h = [float(v) for v in grid.h]
+    sdf = problem.design_region.sdf
     with torch.no_grad():
-        d = problem.design_region.sdf(c).to(torch.float64)
+        d = sdf(c).to(torch.float64)
         extent = torch.zeros_like(d)
         for a in range(grid.dim):
             step = torch.zeros(grid.dim, dtype=torch.float64)
             step[a] = 0.5 * h[a]
-            sdf = problem.design_region.sdf
             extent += (sdf(c + step).to(torch.float64) - sdf(c - step).to(torch.float64)).abs()
         share = torch.where(extent > 0, (0.5 - d / extent.clamp_min(1e-300)).clamp(0.0, 1.0), (d <= 0).to(torch.float64))
     return share.cpu().numpy()
