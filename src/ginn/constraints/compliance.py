@@ -62,6 +62,7 @@ from ..problems.structural import (
     VOID,
     design_depth,
     design_shares,
+    in_obstacles,
     structural_grid,
     structural_solver,
     void_elements,
@@ -222,11 +223,7 @@ class Compliance(Constraint):
         shares = design_shares(p, self.grid)  # E's share of each element, obstacles included
         self.design = torch.as_tensor(shares, dtype=setting.dtype, device=dev)
         self.design_volume = float(shares.sum())  # vol(E) in elements
-        centres = torch.as_tensor(self.grid.centres, dtype=torch.float64)
-        blocked = np.zeros(self.grid.n_elements, bool)
-        with torch.no_grad():
-            for o in p.obstacles:
-                blocked |= o.contains(centres).cpu().numpy()
+        blocked = in_obstacles(p, self.grid.centres)
         self.counted = torch.as_tensor((shares > 0) & ~blocked, device=dev)  # where the shape's volume in E can be
         self.centres = torch.as_tensor(self.grid.centres, dtype=setting.dtype, device=dev)
         self.final_width = 0.5 * float(self.grid.h.min())

@@ -14,7 +14,7 @@ for a density ``rho`` (the reference optimiser, the training term and the report
 
 Public names: :func:`structural_solver`, :func:`structural_grid`, :func:`couple`, :func:`design_depth`, :func:`void_elements`,
 :func:`design_shares`,
-:func:`held_nodes`, :func:`held_elements`, :func:`held_corners`, :func:`void_at`,
+:func:`held_nodes`, :func:`held_elements`, :func:`held_corners`, :func:`void_at`, :func:`in_obstacles`,
 :func:`simp_reference`, :func:`design_on`, :func:`resampled`, :func:`upsample`, :class:`Reference`, :data:`CELLS`, :data:`VOID`,
 :data:`PENALTY`.
 """
@@ -35,7 +35,7 @@ from .derived import CELLS, smallest_feature, structural_cells
 from .problem import Problem
 
 __all__ = ["structural_solver", "structural_grid", "couple", "design_depth", "void_elements", "design_shares", "held_nodes",
-           "held_elements", "held_corners", "void_at", "simp_reference", "design_on", "resampled",
+           "held_elements", "held_corners", "void_at", "in_obstacles", "simp_reference", "design_on", "resampled",
            "upsample", "Reference", "CELLS", "VOID", "PENALTY"]
 
 #: the ersatz material: the modulus of void relative to the solid's
@@ -175,14 +175,21 @@ def _held(problem: Problem, grid: ElementGrid) -> tuple[np.ndarray, np.ndarray]:
 
 def void_at(problem: Problem, points: np.ndarray) -> np.ndarray:
     """``(n,)`` bool: which of ``points`` ``(n, dim)`` lie outside E or inside an obstacle."""
-    c = torch.as_tensor(points, dtype=torch.float64)
-    void = np.zeros(c.shape[0], bool)
-    with torch.no_grad():
-        if problem.design_region is not None:
-            void |= ~problem.design_region.contains(c).cpu().numpy()
-        for o in problem.obstacles:
-            void |= o.contains(c).cpu().numpy()
+    void = in_obstacles(problem, points)
+    if problem.design_region is not None:
+        with torch.no_grad():
+            void |= ~problem.design_region.contains(torch.as_tensor(points, dtype=torch.float64)).cpu().numpy()
     return void
+
+
+def in_obstacles(problem: Problem, points: np.ndarray) -> np.ndarray:
+    """``(n,)`` bool: which of ``points`` ``(n, dim)`` lie inside an obstacle."""
+    c = torch.as_tensor(points, dtype=torch.float64)
+    inside = np.zeros(c.shape[0], bool)
+    with torch.no_grad():
+        for o in problem.obstacles:
+            inside |= o.contains(c).cpu().numpy()
+    return inside
 
 
 def void_elements(problem: Problem, grid: ElementGrid) -> np.ndarray:
