@@ -26,10 +26,10 @@ on interfaces) must touch a solid element of E, at four depths:
 A depth with no element of that size in E at the node falls back on the report's elements. A
 point beyond a held interface (on the side its prescribed normals point to, where the shape must be
 void: inside a bolt hole whose rim is the interface) counts as outside E
-(:func:`ginn.problems.structural.held_corners`): the rim's nodes within half a report element inside
-such a hole are held through their report elements across the rim, and asking the finer depths'
-points inside the hole for material pulled the shape into it against the interface term (a hub whose
-disk E does not cut its bolt holes out ended with nodes there unheld).
+(:func:`ginn.problems.structural.held_corners`): the held nodes lie on the shape's side of such an
+interface, but a node near the rim has some of its finer depths' points inside the hole, and asking
+them for material pulled the shape into it against the interface term (a hub whose disk E does not
+cut its bolt holes out ended with nodes there unheld).
 
 Loss: over the held nodes, the depths and the shapes, the mean of ``relu(m + a w / 2) / w``, ``m``
 the smallest field value at the centres of the node's elements at that depth, ``a`` 1 at the
