@@ -608,6 +608,42 @@ def test_strain_energy_density_of_a_bar_and_its_figure(tmp_path):
     assert path.stat().st_size > 1000
 
 
+def test_shapes_solved_together_as_each_alone(monkeypatch):
+    """Three bands of different widths: :meth:`ComplianceReport.analyse_all` gives each the
+    solution :meth:`analyse` gives it alone, bit for bit, on two threads; after :meth:`prepare`
+    the report measures each shape without solving again, to the same numbers, until
+    :meth:`release`."""
+    p = _spec().build()
+
+    def band(x, z=None):
+        return (x[:, 1] - 0.5).abs() - 0.2 - 0.1 * z[:, 0]
+
+    Z = torch.tensor([[-1.0], [0.0], [1.0]], dtype=torch.float64)
+    alone = [ComplianceReport(p).analyse(band, Z[i]) for i in range(3)]
+    rep = ComplianceReport(p)
+    threads = torch.get_num_threads()
+    torch.set_num_threads(2)
+    try:
+        together = rep.analyse_all(band, Z)
+    finally:
+        torch.set_num_threads(threads)
+    assert len({int(s.sum()) for s, _, _ in together}) == 3
+    for (s1, U1, d1), (s2, U2, d2) in zip(alone, together):
+        assert np.array_equal(s1, s2) and torch.equal(U1, U2) and torch.equal(d1, d2)
+    before = [rep.measure(None, None, band, Z[i]) for i in range(3)]
+    rep.prepare(band, Z)
+    solver = rep.fine()[1]
+
+    def solve(moduli):
+        raise RuntimeError("solved")
+
+    monkeypatch.setattr(solver, "solve", solve)
+    assert [rep.measure(None, None, band, Z[i]) for i in range(3)] == before
+    rep.release()
+    with pytest.raises(RuntimeError, match="solved"):
+        rep.measure(None, None, band, Z[0])
+
+
 BAR_IN_TENSION = """
 name: tension-bar
 geometry:

@@ -48,8 +48,7 @@ def plot_strain_energy(model, Z: torch.Tensor | None, problem: Problem, path: Pa
     aspect = (hi[1] - lo[1]) / (hi[0] - lo[0])
     fig = new_figure(4.2 * cols + 1.2, (4.2 * aspect + 0.8) * rows)
     fields = []
-    for z in codes:
-        solid, U, density = rep.analyse(model, z)
+    for solid, U, density in rep.analyse_all(model, Z):
         c = float(w @ solver.work(U[None])[0].numpy())
         fields.append((np.where(solid, (torch.as_tensor(w)[:, None] * density).sum(0).numpy(), np.nan), c))
     finite = np.concatenate([f[np.isfinite(f) & (f > 0)] for f, _ in fields])
@@ -88,8 +87,7 @@ def strain_energy_meshes(model, Z: torch.Tensor | None, problem: Problem, out_di
     _, solver, w, _ = rep.fine()
     codes = [None] if Z is None else [Z[i] for i in range(Z.shape[0])]
     shapes = []
-    for z in codes:
-        solid, U, density = rep.analyse(model, z)
+    for z, (solid, U, density) in zip(codes, rep.analyse_all(model, Z)):
         c = float(w @ solver.work(U[None])[0].numpy())
         energy = (torch.as_tensor(w)[:, None] * density).sum(0).numpy()
         mesh = watertight_mesh(shape_boundary(model, z, problem.domain, resolution)[0])

@@ -12,6 +12,7 @@ from torch import Tensor, nn
 
 from ...config import default_resolution
 from ...constraints import verdict_text
+from ...constraints.compliance import ComplianceReport
 from ...errors import ConfigError, GinnError
 from ...eval.latent_space import LatentJudge, LatentSurvey, axis_paths, survey_latents
 from ...eval.plateau import ReferenceVerdict, evaluate_plateau
@@ -94,7 +95,14 @@ class ShapeResults(Results):
         the problem has one."""
         res_ = self._checked(resolution or default_resolution("eval", self.problem.dim), 64)
         verdicts = self.task.verdicts()
-        res = evaluate_shapes(model, self.task.Z, self.problem, res_, verdicts=verdicts)
+        reports = [v for v in verdicts if isinstance(v, ComplianceReport)]
+        for r in reports:  # every shape's fine-grid solve in one call, side by side on the threads
+            r.prepare(model, self.task.Z)
+        try:
+            res = evaluate_shapes(model, self.task.Z, self.problem, res_, verdicts=verdicts)
+        finally:
+            for r in reports:
+                r.release()
         if self.task.Z is not None and heldout != 0:
             survey = self.survey(model, res_, heldout)
             res.feasibility.heldout = survey.summary
