@@ -232,9 +232,9 @@ class ShapeTask(Task):
         return heldout_latents(self.cfg.latents, n or HELDOUT_LATENTS[purpose][self.d], self.device, self.dtype)
 
     def callbacks(self, dist: DistContext | None = None) -> list[Callback]:
-        """The feasibility checks (:class:`~ginn.tasks.shape.checks.FeasibilityChecks`), in a single
-        process with ``training.feasibility_checks > 0``."""
+        """The feasibility checks (:class:`~ginn.tasks.shape.checks.FeasibilityChecks`) with
+        ``training.feasibility_checks > 0``; in a data-parallel run rank 0 judges for every rank."""
         t = self.cfg.training
-        if dist is not None or t.feasibility_checks <= 0 or t.iterations <= 0:
+        if t.feasibility_checks <= 0 or t.iterations <= 0:
             return []
-        return [FeasibilityChecks(lambda model: self.checker()(model, self.Z), t, self.verdicts(), self.constraints)]
+        return [FeasibilityChecks(lambda model: self.checker()(model, self.Z), t, self.verdicts(), self.constraints, dist)]
