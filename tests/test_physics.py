@@ -313,3 +313,81 @@ def test_simp_bar_in_tension_is_a_straight_bar():
     assert set(densest) == set(np.flatnonzero(band))  # thresholded at the bound's volume: the straight bar
     beyond = np.abs(g.centres[:, 1] - ny / 2) > 2.5  # past the filter's grey rim
     assert res.density[beyond].max() < 1e-3
+
+
+def _pinned_plate(method, nu=0.3):
+    """A 6 x 4 plate on a frictionless pin at the origin (the nodes within half an element of a
+    circle of radius 1, held along the radius), held along y at one node and loaded at another."""
+    g = ElementGrid((-3.0, -2.0), (3.0, 2.0), (24, 16))
+    x = g.nodes
+    r = np.linalg.norm(x, axis=1)
+    pin = np.abs(r - 1.0) <= 0.5 * g.h.max()
+    normals = np.where(pin[:, None], x / np.maximum(r, 1e-300)[:, None], 0.0)
+    link = int(np.argmin(np.linalg.norm(x - [-2.5, -1.5], axis=1)))
+    tip = int(np.argmin(np.linalg.norm(x - [2.5, 1.5], axis=1)))
+    fixed = np.zeros((g.n_nodes, 2), bool)
+    fixed[link, 1] = True
+    F = np.zeros((g.n_nodes, 2))
+    F[tip] = [-1.0, -2.0]
+    s = ElasticitySolver(g, nu, fixed.reshape(-1), F.reshape(1, -1), method=method, normals=normals)
+    return g, s, pin, normals, link, tip, F
+
+
+@pytest.mark.parametrize("method", ["direct", "cg", "cg-diagonal"])
+def test_pin_turns_freely_and_the_link_takes_the_moment(method):
+    """A frictionless pin holds only along the rim's normals: its reactions have no moment about
+    its centre, so the link alone balances the load's moment (statics, whatever the stiffness),
+    and every pin node slides along the rim (zero radial displacement)."""
+    g, s, pin, normals, link, tip, F = _pinned_plate(method)
+    rng = np.random.default_rng(5)
+    E = torch.tensor(rng.uniform(0.5, 2.0, g.n_elements), dtype=torch.float64)
+    U = s.solve(E)[0, 0].numpy()
+    K = ElasticitySolver(g, 0.3, np.zeros(g.n_dofs, bool), np.zeros((1, g.n_dofs))).stiffness(E.numpy())
+    R = (K @ U - F.reshape(-1)).reshape(-1, 2)  # the supports' reactions
+    x = g.nodes
+    scale = np.abs(F).max()
+    free = ~pin
+    free[link] = False
+    assert np.abs(R[free]).max() <= 1e-8 * scale  # equilibrium wherever nothing holds the node
+    assert np.abs(R[link, 0]) <= 1e-8 * scale
+    moment = x[tip, 0] * F[tip, 1] - x[tip, 1] * F[tip, 0]
+    assert R[link, 1] == pytest.approx(-moment / x[link, 0], rel=1e-8)
+    pin_moment = (x[pin, 0] * R[pin, 1] - x[pin, 1] * R[pin, 0]).sum()
+    assert abs(pin_moment) <= 1e-8 * abs(moment)
+    u = U.reshape(-1, 2)
+    assert np.abs((u[pin] * normals[pin]).sum(axis=1)).max() <= 1e-12 * np.abs(u).max()
+    assert np.abs((u[pin] * normals[pin][:, ::-1] * [-1, 1]).sum(axis=1)).max() > 1e-3 * np.abs(u).max()  # it slides
+    c = compliance(E[None], s)[0]
+    assert float(c[0, 0]) == pytest.approx(float(F.reshape(-1) @ U), rel=1e-10)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_normals_along_the_axes_hold_as_fixed_axes(dim):
+    """A normal along x at a node holds what fixing x holds: the same displacements (every
+    method), the same compliance and its gradient."""
+    g = ElementGrid((0.0,) * dim, (3.0, 1.0, 1.0)[:dim], (6, 3, 2)[:dim])
+    x = g.nodes
+    left = np.isclose(x[:, 0], 0)
+    F = np.zeros((g.n_nodes, dim))
+    F[np.isclose(x[:, 0], 3.0), 1] = -0.1
+    fixed = np.zeros((g.n_nodes, dim), bool)
+    fixed[left] = True  # clamped
+    normals = np.zeros((g.n_nodes, dim))
+    normals[left, 0] = -1.0
+    only_axes = fixed.copy()
+    only_axes[left, 0] = False  # x is held by the normals
+    only_axes[np.flatnonzero(left)[:2], 0] = True  # and also by an axis at two nodes: both at once
+    rng = np.random.default_rng(6)
+    E = torch.tensor(rng.uniform(0.2, 1.0, (2, g.n_elements)), dtype=torch.float64, requires_grad=True)
+    ref = ElasticitySolver(g, 0.3, fixed.reshape(-1), F.reshape(1, -1), method="direct")
+    U = ref.solve(E.detach())
+    c_ref = compliance(E, ref)[0].sum()
+    (g_ref,) = torch.autograd.grad(c_ref, E)
+    for method in ("direct", "cg", "cg-diagonal"):
+        s = ElasticitySolver(g, 0.3, only_axes.reshape(-1), F.reshape(1, -1), method=method, normals=normals)
+        V = s.solve(E.detach())
+        assert (V - U).abs().max() <= 1e-8 * U.abs().max(), method
+        c = compliance(E, s)[0].sum()
+        (grad,) = torch.autograd.grad(c, E)
+        assert float(c.detach()) == pytest.approx(float(c_ref.detach()), rel=1e-8)
+        assert (grad - g_ref).abs().max() <= 1e-8 * g_ref.abs().max()

@@ -25,7 +25,7 @@ from ginn.constraints.compliance import (
 from ginn.constraints.volume import VolumeFraction
 from ginn.errors import SpecError
 from ginn.eval.feasibility import FeasibilityCheck
-from ginn.physics import ElementGrid
+from ginn.physics import ElasticitySolver, ElementGrid
 from ginn.problems import get_spec, validate_spec
 from ginn.problems.derived import smallest_feature
 from ginn.problems.structural import (
@@ -71,6 +71,8 @@ _BAD = [
     ({"loads": [{"interface": 1}]}, "physics.loads[0]"),  # neither force nor torque
     ({"loads": [{"interface": 1, "torque": [1.0, 0.0]}]}, "physics.loads[0]"),  # 2D: a number
     ({"loads": [{"interface": [], "force": [1.0, 0.0]}]}, "physics.loads[0].interface"),
+    ({"supports": [{"region": {"type": "disk", "center": [0, 0], "radius": 0.1}, "fix": ["normal"]}]},
+     "physics.supports[0].fix"),  # a region has no normal
 ]
 
 
@@ -148,6 +150,56 @@ def test_loads_and_supports_act_on_the_shapes_side_of_an_interface_with_normals(
     loaded = np.abs(structural_solver(p, grid)[0].forces.reshape(-1, 2)).sum(axis=1) > 0
     r = np.linalg.norm(x - np.array([2.03, 0.42]), axis=1)
     assert np.array_equal(loaded, np.abs(r - 0.17) <= 0.05 + 1e-12) and (r[loaded] < 0.17).any()
+
+
+LEVER = {
+    "name": "lever",
+    "geometry": {"dim": 2, "domain": {"lo": [-120.0, -70.0], "hi": [120.0, 70.0]},
+                 "design_region": {"type": "difference", "children": [
+                     {"type": "rectangle", "lo": [-110.0, -60.0], "hi": [110.0, 60.0]},
+                     {"type": "disk", "center": [0.0, 0.0], "radius": 12.0}]},
+                 "interfaces": [{"type": "circle", "center": [0.0, 0.0], "radius": 12.0, "normals": "inward"},
+                                {"type": "circle", "center": [-90.0, 40.0], "radius": 8.0},
+                                {"type": "circle", "center": [90.0, -40.0], "radius": 8.0}]},
+    "tolerances": {"volume_fraction": {"max": 0.25}},
+    "physics": {"material": {"youngs_modulus": 70e3, "poisson_ratio": 0.33},
+                "supports": [{"interface": 0, "fix": ["normal"]}, {"interface": 2, "fix": ["y"]}],
+                "loads": [{"interface": 1, "force": [-200.0, -400.0]}]},
+}
+
+
+def test_a_pin_support_lets_the_part_turn_so_the_link_takes_the_moment():
+    """``fix: [normal]`` on a pivot's rim is a frictionless pin: its nodes are held along the rim's
+    normal (radial, to the centre), their reactions have no moment about the pivot, and the link
+    held along y balances the load's moment alone, whatever the part's stiffness."""
+    p = validate_spec(LEVER).build()
+    grid = structural_grid(p, 96)
+    solver, _ = structural_solver(p, grid)
+    x = grid.nodes
+    pin = solver.frames.nodes
+    assert pin.size > 20 and not solver.fixed.reshape(-1, 2)[pin].any()
+    radial = x[pin] / np.linalg.norm(x[pin], axis=1, keepdims=True)
+    assert np.allclose(np.abs((solver.frames.Q[:, :, 0] * radial).sum(axis=1)), 1.0, atol=1e-12)
+    E = torch.where(torch.as_tensor(solver.active), 70e3, 70e3 * VOID).to(torch.float64)
+    U = solver.solve(E)[0, 0].numpy()
+    plain = ElasticitySolver(grid, 0.33, np.zeros(grid.n_dofs, bool), np.zeros((1, grid.n_dofs)), active=solver.active)
+    R = np.zeros(grid.n_dofs)
+    R[plain.free] = plain.stiffness(E.numpy()) @ U[plain.free] - solver.forces[0, plain.free]
+    R = R.reshape(-1, 2)
+    F = solver.forces[0].reshape(-1, 2)
+    load_moment = (x[:, 0] * F[:, 1] - x[:, 1] * F[:, 0]).sum()
+    link = solver.fixed.reshape(-1, 2)[:, 1]
+    link_moment = (x[link, 0] * R[link, 1]).sum()
+    pin_moment = (x[pin, 0] * R[pin, 1] - x[pin, 1] * R[pin, 0]).sum()
+    assert abs(pin_moment) <= 1e-8 * abs(load_moment)
+    assert link_moment == pytest.approx(-load_moment, rel=1e-8)
+    assert np.abs((U.reshape(-1, 2)[pin] * radial).sum(axis=1)).max() <= 1e-12 * np.abs(U).max()
+    clamped = validate_spec({**LEVER, "physics": {**LEVER["physics"], "supports": [
+        {"interface": 0}, {"interface": 2, "fix": ["y"]}]}}).build()
+    csolver, _ = structural_solver(clamped, grid)
+    Uc = csolver.solve(E)[0, 0].numpy()
+    # a support that holds less leaves the part more compliant (here 31.5 against 24.5)
+    assert float(solver.work(torch.from_numpy(U[None, None]))) > 1.2 * float(csolver.work(torch.from_numpy(Uc[None, None])))
 
 
 def _moment(x, F):
@@ -731,3 +783,4 @@ def test_coloured_meshes_of_a_3d_bar_in_tension(tmp_path):
     e = vertex_energy(rep, solid, density[0].numpy(), np.asarray(mesh.vertices))
     assert np.isfinite(e).all() and float(np.median(e)) == pytest.approx(0.25, rel=0.02)
     assert float(rep.fine()[1].work(U[None])[0, 0]) == pytest.approx(4.0, rel=0.02)
+

@@ -4,9 +4,13 @@ batch from its element moduli, solved for every load case.
 ``K(E) = sum_e E_e K0_e`` with ``K0`` the unit-modulus element matrix
 (:func:`~ginn.physics.elements.element_stiffness`), the same for every element of the grid. The
 fixed degrees of freedom are removed (zero displacement there); a load case is a vector of nodal
-forces. Every method solves over the *active* elements only (``active``: those of the design
-region, where a grid over a box has elements that stay void; default all): the others are left
-out (modulus zero) and the degrees of freedom of nodes with no active element are held at zero.
+forces. A node may also be held along a direction of its own (``normals``: a frictionless pin in a
+round hole holds each node of the rim along the rim's normal, so the part turns about the pin): its
+degrees of freedom are taken in a frame of its own (:class:`_Frames`), whose first axes span the
+held directions, and the elements around it get the rotated matrix ``T_e^T K0 T_e``; the solve
+runs in those frames and returns Cartesian displacements. Every method solves over the *active*
+elements only (``active``: those of the design region, where a grid over a box has elements that
+stay void; default all): the others are left out (modulus zero) and the degrees of freedom of nodes with no active element are held at zero.
 Two methods solve ``K u = f``:
 
 * ``direct``: the assembled matrix of the solved degrees of freedom (one scatter of the element
@@ -67,10 +71,92 @@ class _DeviceData:
     edof: torch.Tensor  # (n_elements, k) every element's degrees of freedom
     free: torch.Tensor  # (n_dofs,) 1.0 where not fixed
     forces: torch.Tensor  # (L, n_dofs)
+    local_forces: torch.Tensor  # (L, n_dofs) the forces in the nodes' frames (:class:`_Frames`)
     active: torch.Tensor  # (n_active,) the active elements' indices
     active_mask: torch.Tensor  # (n_elements,) bool, True at the active elements
-    solved: torch.Tensor  # (n_dofs,) 1.0 where the CG methods solve (not held)
+    solved: torch.Tensor  # (n_dofs,) 1.0 where the CG methods solve (not held), in the nodes' frames
     active_edof: torch.Tensor  # (n_active, k) the active elements' degrees of freedom
+    frame_nodes: torch.Tensor  # (m,) the nodes with a frame of their own
+    frames: torch.Tensor  # (m, d, d) their frames: Cartesian = frames @ local
+    clamped: torch.Tensor  # (n_dofs,) 1.0 where the multigrid preconditioner solves (every framed node held)
+    framed: torch.Tensor  # (n_dofs,) 1.0 at the framed nodes' solved degrees of freedom
+
+
+class _Frames:
+    """The nodes held along directions of their own and the frames their degrees of freedom are
+    taken in.
+
+    A node with a nonzero row of ``normals`` ``(n_nodes, d)`` is held along it and along its fixed
+    axes: its frame ``Q`` ``(d, d)`` (orthonormal columns; Cartesian displacement ``Q u_local``)
+    has first the ``r`` axes that span those directions (held: ``r = 1`` for a normal alone, more
+    where a fixed axis adds another), then the ones it may move along. The nodes without a normal
+    keep the Cartesian frame and their fixed axes.
+
+    Attributes:
+        nodes: ``(m,)`` the framed nodes.
+        Q: ``(m, d, d)`` their frames.
+        fixed: ``(n_dofs,)`` bool, the held degrees of freedom in the nodes' frames.
+        elements: ``(n_e,)`` the elements with a framed corner.
+        K0: ``(n_e, k, k)`` their unit-modulus matrices in the corners' frames, ``T_e^T K0 T_e``.
+    """
+
+    def __init__(self, grid: ElementGrid, K0: np.ndarray, fixed: np.ndarray, normals: np.ndarray | None) -> None:
+        d = grid.dim
+        self.fixed = fixed.copy()
+        n = np.zeros((grid.n_nodes, d)) if normals is None else np.asarray(normals, dtype=np.float64).reshape(grid.n_nodes, d)
+        length = np.linalg.norm(n, axis=1)
+        self.nodes = np.flatnonzero(length > 0)
+        m = self.nodes.size
+        self.Q = np.zeros((m, d, d))
+        self.elements = np.zeros(0, dtype=np.int64)
+        self.K0 = np.zeros((0,) + K0.shape)
+        if m == 0:
+            return
+        held = np.zeros((m, d, d + 1))  # per node: its fixed axes' unit vectors and its normal, as columns
+        axes = fixed.reshape(grid.n_nodes, d)[self.nodes]  # (m, d)
+        held[:, :, :d] = np.eye(d)[None] * axes[:, None, :]
+        held[:, :, d] = n[self.nodes] / length[self.nodes, None]
+        U, S, _ = np.linalg.svd(held)  # U's first rank columns span the held directions
+        rank = (S > 1e-9 * S[:, :1]).sum(axis=1)
+        self.Q = U
+        local = np.arange(d)[None, :] < rank[:, None]  # (m, d)
+        self.fixed.reshape(grid.n_nodes, d)[self.nodes] = local
+        framed = np.zeros(grid.n_nodes, bool)
+        framed[self.nodes] = True
+        corners = grid.element_nodes  # (n_elements, 2^d)
+        self.elements = np.flatnonzero(framed[corners].any(axis=1))
+        slot = np.full(grid.n_nodes, -1)
+        slot[self.nodes] = np.arange(m)
+        T = np.zeros((self.elements.size,) + K0.shape)  # blockdiag of the corners' frames
+        eye = np.eye(d)
+        for c in range(corners.shape[1]):
+            j = slot[corners[self.elements, c]]
+            T[:, c * d:(c + 1) * d, c * d:(c + 1) * d] = np.where((j >= 0)[:, None, None], self.Q[j.clip(0)], eye)
+        self.K0 = np.einsum("eai,ab,ebj->eij", T, K0, T)
+
+    def to_cartesian(self, U: np.ndarray | torch.Tensor) -> np.ndarray | torch.Tensor:
+        """``(..., n_dofs)`` displacements from the nodes' frames to Cartesian (a copy)."""
+        return self._turn(U, transpose=False)
+
+    def to_local(self, U: np.ndarray | torch.Tensor) -> np.ndarray | torch.Tensor:
+        """``(..., n_dofs)`` vectors from Cartesian to the nodes' frames (a copy)."""
+        return self._turn(U, transpose=True)
+
+    def _turn(self, U, transpose: bool):
+        is_torch = isinstance(U, torch.Tensor)
+        out = U.clone() if is_torch else np.array(U, copy=True)
+        if self.nodes.size == 0:
+            return out
+        d = self.Q.shape[1]
+        if is_torch:
+            Q = torch.as_tensor(self.Q, device=U.device, dtype=U.dtype)
+            nodes = torch.as_tensor(self.nodes, device=U.device)
+            V = out.reshape(*out.shape[:-1], -1, d)
+            V[..., nodes, :] = torch.einsum("mji,...mj->...mi" if transpose else "mij,...mj->...mi", Q, V[..., nodes, :])
+            return out
+        V = out.reshape(*out.shape[:-1], -1, d)
+        V[..., self.nodes, :] = np.einsum("mji,...mj->...mi" if transpose else "mij,...mj->...mi", self.Q, V[..., self.nodes, :])
+        return out
 
 
 class ElasticitySolver:
@@ -88,11 +174,14 @@ class ElasticitySolver:
             method leaves the others out (modulus zero instead of the weak ersatz) and holds the
             degrees of freedom of nodes with no active element at zero, so that a grid over a box
             solves only the design region's share of it.
+        normals: ``(n_nodes, dim)``: a node with a nonzero row is also held along that direction
+            (its displacement has no component along it) and moves freely across it (default:
+            none).
     """
 
     def __init__(self, grid: ElementGrid, nu: float, fixed: np.ndarray, forces: np.ndarray, *,
                  method: str = "auto", rtol: float = 1e-10, max_iter: int = 20_000,
-                 active: np.ndarray | None = None) -> None:
+                 active: np.ndarray | None = None, normals: np.ndarray | None = None) -> None:
         if method not in METHODS:
             raise ValueError(f"ElasticitySolver: method must be one of {METHODS}, not {method!r}")
         fixed = np.asarray(fixed, dtype=bool).reshape(-1)
@@ -106,17 +195,22 @@ class ElasticitySolver:
         self.max_iter = int(max_iter)
         self.iterations = 0  # CG's iterations in the last solve
         self.K0 = element_stiffness(grid.h, nu)  # (k, k)
-        self.fixed = fixed
+        self.fixed = fixed  # Cartesian: the fixed axes
         self.active = np.ones(grid.n_elements, bool) if active is None else np.asarray(active, dtype=bool).reshape(-1)
         if self.active.shape != (grid.n_elements,):
             raise ValueError("ElasticitySolver: active needs (n_elements,) entries")
+        if normals is not None and np.asarray(normals).shape != (grid.n_nodes, grid.dim):
+            raise ValueError("ElasticitySolver: normals needs (n_nodes, dim) entries")
+        self.frames = _Frames(grid, self.K0, fixed, normals)
         touched = np.zeros(grid.n_dofs, bool)
         touched[grid.element_dofs[self.active].reshape(-1)] = True
-        self.held = fixed | ~touched  # the zero degrees of freedom: fixed, or on no active element
-        self.free = np.flatnonzero(~self.held)  # the direct method's unknowns
-        if np.any(forces[:, self.held & ~fixed] != 0):
+        if np.any(forces[:, ~touched & ~fixed] != 0):
             raise ValueError("ElasticitySolver: a load on a node with no active element")
+        # the zero degrees of freedom, in the nodes' frames: held, or on no active element
+        self.held = self.frames.fixed | ~touched
+        self.free = np.flatnonzero(~self.held)  # the direct method's unknowns
         self.forces = forces
+        self.local_forces = self.frames.to_local(forces)  # (L, n_dofs) in the nodes' frames
         self._pattern: tuple | None = None
         self._warm: dict = {}
         self._torch_cache: dict = {}
@@ -165,10 +259,21 @@ class ElasticitySolver:
         moduli = np.asarray(moduli, dtype=np.float64)
         if not self.active.all():
             moduli = moduli[self.active]
-        vals = (moduli[:, None] * self.K0.reshape(1, -1)).reshape(-1)[keep]
+        vals = moduli[:, None] * self.K0.reshape(1, -1)  # (n_active, k k)
+        if self.frames.elements.size:
+            pos, turned = self._turned_active()
+            vals[pos] = moduli[pos, None] * turned.reshape(pos.size, -1)
+        vals = vals.reshape(-1)[keep]
         data = np.bincount(slot, weights=vals, minlength=nnz)
         n = self.free.size
         return sp.csr_matrix((data, indices, indptr), shape=(n, n))
+
+    def _turned_active(self) -> tuple[np.ndarray, np.ndarray]:
+        """The active elements with a framed corner: their positions among the active elements
+        ``(n,)`` and their matrices in the corners' frames ``(n, k, k)``."""
+        act = self.active[self.frames.elements]
+        pos = np.searchsorted(np.flatnonzero(self.active), self.frames.elements[act])
+        return pos, self.frames.K0[act]
 
     # --- solving --------------------------------------------------------------------------------
 
@@ -187,7 +292,7 @@ class ElasticitySolver:
             return self._solve_cg(E.to(torch.float64), multigrid=method == "cg")
         En = E.to(torch.float64).cpu().numpy()
         U = np.zeros((En.shape[0], self.n_loads, self.grid.n_dofs))
-        F = np.ascontiguousarray(self.forces[:, self.free].T)  # (nf, L)
+        F = np.ascontiguousarray(self.local_forces[:, self.free].T)  # (nf, L)
         solve_one = self._band_solver(F) if self.grid.dim == 2 else self._sparse_solver(F)
 
         def run(worker: int, shapes: np.ndarray) -> None:
@@ -203,6 +308,8 @@ class ElasticitySolver:
                     list(pool.map(run, range(len(chunks)), chunks))
             else:
                 run(0, chunks[0])
+        if self.frames.nodes.size:
+            U = self.frames.to_cartesian(U)
         return torch.from_numpy(U).to(E.device)
 
     def _upper(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -297,43 +404,88 @@ class ElasticitySolver:
                 edof=torch.as_tensor(self.grid.element_dofs, device=device),
                 free=torch.as_tensor(~self.fixed, device=device, dtype=torch.float64),
                 forces=torch.as_tensor(self.forces, device=device),
+                local_forces=torch.as_tensor(self.local_forces, device=device),
                 active=torch.as_tensor(np.flatnonzero(self.active), device=device),
                 active_mask=torch.as_tensor(self.active, device=device),
                 solved=torch.as_tensor(~self.held, device=device, dtype=torch.float64),
                 active_edof=torch.as_tensor(self.grid.element_dofs[self.active], device=device),
+                frame_nodes=torch.as_tensor(self.frames.nodes, device=device),
+                frames=torch.as_tensor(self.frames.Q, device=device),
+                clamped=torch.as_tensor(~self._clamped(), device=device, dtype=torch.float64),
+                framed=torch.as_tensor(self._clamped() & ~self.held, device=device, dtype=torch.float64),
             )
         return self._torch_cache[key]
 
+    def _clamped(self) -> np.ndarray:
+        """``(n_dofs,)`` bool: :attr:`held` and every degree of freedom of a framed node (the
+        multigrid preconditioner's held set: its hierarchy is Cartesian)."""
+        out = self.held.copy()
+        out.reshape(-1, self.grid.dim)[self.frames.nodes] = True
+        return out
+
     def apply(self, moduli: torch.Tensor, U: torch.Tensor) -> torch.Tensor:
         """``K(E) u`` of the CG methods, matrix-free, for moduli ``(B, n_elements)`` and displacements
-        ``(B, L, n_dofs)`` (float64): the active elements only, the rows and columns of
-        :attr:`held` degrees of freedom removed (zero there)."""
+        ``(B, L, n_dofs)`` (float64) in the nodes' frames (Cartesian where no node has a normal):
+        the active elements only, the rows and columns of :attr:`held` degrees of freedom removed
+        (zero there)."""
         d = self._torch_data(U.device)
         U = U * d.solved
+        if self.frames.nodes.size:
+            return self.frames.to_local(self._apply_cartesian(moduli, self.frames.to_cartesian(U), d)) * d.solved
+        return self._apply_cartesian(moduli, U, d) * d.solved
+
+    def _apply_cartesian(self, moduli: torch.Tensor, U: torch.Tensor, d: _DeviceData) -> torch.Tensor:
         Ue = U[:, :, d.active_edof]  # (B, L, n_active, k)
         Fe = torch.matmul(Ue, d.K0) * moduli[:, d.active][:, None, :, None]
         out = torch.zeros_like(U)
         out.index_add_(2, d.active_edof.reshape(-1), Fe.reshape(*Fe.shape[:2], -1))
-        return out * d.solved
+        return out
+
+    def _apply_clamped(self, moduli: torch.Tensor, U: torch.Tensor) -> torch.Tensor:
+        """The multigrid's element-grid operator: Cartesian, the framed nodes held (:meth:`_clamped`)."""
+        d = self._torch_data(U.device)
+        return self._apply_cartesian(moduli, U * d.clamped, d) * d.clamped
 
     def multigrid(self) -> Multigrid:
-        """The geometric multigrid hierarchy of the grid and its fixed degrees of freedom."""
+        """The geometric multigrid hierarchy of the grid and its fixed degrees of freedom (Cartesian:
+        every degree of freedom of a node with a frame of its own held, :meth:`_clamped`)."""
         if self._mg is None:
-            self._mg = Multigrid(self.grid, self.K0, self.held, self.active)
+            self._mg = Multigrid(self.grid, self.K0, self._clamped(), self.active)
         return self._mg
+
+    def _diagonal(self, E: torch.Tensor) -> torch.Tensor:
+        """``(B, n_dofs)`` the diagonal of ``K(E)`` in the nodes' frames."""
+        d = self._torch_data(E.device)
+        B = E.shape[0]
+        diag = torch.zeros(B, self.grid.n_dofs, dtype=torch.float64, device=E.device)
+        diag.index_add_(1, d.edof.reshape(-1), (E[:, :, None] * torch.diagonal(d.K0)[None, None, :]).reshape(B, -1))
+        if self.frames.elements.size:
+            el = torch.as_tensor(self.frames.elements, device=E.device)
+            turned = torch.as_tensor(np.diagonal(self.frames.K0, axis1=1, axis2=2) - np.diag(self.K0)[None], device=E.device)
+            diag.index_add_(1, d.edof[el].reshape(-1), (E[:, el, None] * turned[None]).reshape(B, -1))
+        return diag
 
     def _solve_cg(self, E: torch.Tensor, multigrid: bool) -> torch.Tensor:
         d = self._torch_data(E.device)
-        K0, edof, forces, free = d.K0, d.edof, d.forces, d.solved
+        forces, free = d.local_forces, d.solved
         B, L, n = E.shape[0], self.n_loads, self.grid.n_dofs
         tiny = torch.finfo(torch.float64).tiny
         E = torch.where(torch.as_tensor(self.active, device=E.device), E, 0.0)
-        if multigrid:
+        if multigrid and not self.frames.nodes.size:
             precondition = self.multigrid().hierarchy(E, lambda U: self.apply(E, U)).precondition
             every = 1
+        elif multigrid:
+            # the cycle of the problem with the framed nodes held, and Jacobi on the framed nodes'
+            # free degrees of freedom: the sum is symmetric positive definite on the solved ones
+            cycle = self.multigrid().hierarchy(E, lambda U: self._apply_clamped(E, U)).precondition
+            jacobi = (d.framed / self._diagonal(E).clamp_min(tiny))[:, None, :]
+
+            def precondition(r: torch.Tensor) -> torch.Tensor:
+                return cycle(r * d.clamped) * d.clamped + jacobi * r
+
+            every = 1
         else:
-            diag = torch.zeros(B, n, dtype=torch.float64, device=E.device)
-            diag.index_add_(1, edof.reshape(-1), (E[:, :, None] * torch.diagonal(K0)[None, None, :]).reshape(B, -1))
+            diag = self._diagonal(E)
             inv = torch.where(free > 0, 1.0 / diag.clamp_min(tiny), 0.0)[:, None, :]
 
             def precondition(r: torch.Tensor) -> torch.Tensor:
@@ -347,7 +499,7 @@ class ElasticitySolver:
         fnorm = f.norm(dim=-1, keepdim=True).clamp_min(tiny)
         self.iterations = 0
         if bool(torch.all(r.norm(dim=-1, keepdim=True) <= self.rtol * fnorm)):
-            return x
+            return self.frames.to_cartesian(x) if self.frames.nodes.size else x
         z = precondition(r)
         p = z.clone()
         rz = (r * z).sum(-1, keepdim=True)
@@ -367,7 +519,7 @@ class ElasticitySolver:
             raise RuntimeError(f"ElasticitySolver: CG reached {self.max_iter} iterations at relative residual {worst:.2e}")
         self.iterations = it + 1
         self._warm[("cg", B, str(E.device))] = x
-        return x
+        return self.frames.to_cartesian(x) if self.frames.nodes.size else x
 
     def warm_state(self) -> dict[str, torch.Tensor]:
         """CG's warm starts (``{batch size: displacements}``), for a checkpoint: a resumed run then

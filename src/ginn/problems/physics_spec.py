@@ -6,7 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Annotated, Literal
 
-from pydantic import Field, ValidationInfo, model_validator
+from pydantic import Field, ValidationInfo, field_validator, model_validator
 
 from ..errors import SpecError
 from ..geometry.base import Interface, Region
@@ -50,8 +50,17 @@ class PlaceSpec(Node):
 class SupportSpec(PlaceSpec):
     """Held displacement components at an interface or in a region."""
 
-    fix: list[Literal["x", "y", "z"]] | None = Field(
-        None, description="the displacement components held at zero (default: all; [x] is a roller along x = const)")
+    fix: list[Literal["x", "y", "z", "normal"]] | None = Field(
+        None, description="the displacement components held at zero (default: all; [x] is a roller along x = const; "
+                          "[normal]: along the interface's normal, so the part slides along it and turns in a round "
+                          "hole's rim: a frictionless pin)")
+
+    @field_validator("fix")
+    @classmethod
+    def _normal_on_interfaces(cls, fix, info: ValidationInfo):
+        if fix is not None and "normal" in fix and info.data.get("region") is not None:
+            raise ValueError("'normal' needs interfaces (a region has no normal)")
+        return fix
 
 
 class LoadSpec(PlaceSpec):
@@ -119,10 +128,10 @@ class PhysicsSpec(Node):
         supports, labels = [], []
         for i, s in enumerate(self.supports):
             path = f"physics.supports[{i}]"
-            axes = tuple(range(dim)) if s.fix is None else tuple(sorted({AXES[a] for a in s.fix}))
+            axes = tuple(range(dim)) if s.fix is None else tuple(sorted({AXES[a] for a in s.fix if a != "normal"}))
             if any(a >= dim for a in axes):
                 raise SpecError(f"spec field '{path}.fix': a {dim}D problem has no axis z")
-            supports.append(Support(s.place(interfaces, dim, base, path), axes))
+            supports.append(Support(s.place(interfaces, dim, base, path), axes, s.fix is not None and "normal" in s.fix))
             labels.append(path)
         if self.loads is not None:
             cases_in = [(self.loads, 1.0, "physics.loads")]

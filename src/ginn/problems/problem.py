@@ -151,10 +151,13 @@ class Tolerances:
 @dataclass(frozen=True)
 class Support:
     """Degrees of freedom held at zero: the components ``axes`` (0: x, 1: y, 2: z) of the finite-element
-    nodes within half an element of any of ``where`` (interfaces or regions)."""
+    nodes within half an element of any of ``where`` (interfaces or regions), and with ``normal``
+    the component along the normal of the nearest interface (a frictionless pin in a round hole's
+    rim: the part turns about it)."""
 
     where: tuple[Interface | Region, ...]
     axes: tuple[int, ...]
+    normal: bool = False
 
 
 @dataclass(frozen=True)

@@ -13,8 +13,8 @@ the baseline the structural results are measured against.
 The material model of the shapes' elements is SIMP's: modulus ``E (VOID + (1 - VOID) rho^PENALTY)``
 for a density ``rho`` (the reference optimiser, the training term and the report share it).
 
-Public names: :func:`structural_solver`, :func:`structural_grid`, :func:`couple`, :func:`design_depth`, :func:`void_elements`,
-:func:`design_shares`,
+Public names: :func:`structural_solver`, :func:`structural_grid`, :func:`couple`, :func:`interface_normals`,
+:func:`design_depth`, :func:`void_elements`, :func:`design_shares`,
 :func:`held_nodes`, :func:`held_elements`, :func:`held_corners`, :func:`void_at`, :func:`in_obstacles`,
 :func:`simp_reference`, :func:`design_on`, :func:`resampled`, :func:`upsample`, :class:`Reference`, :data:`CELLS`, :data:`VOID`,
 :data:`PENALTY`.
@@ -30,14 +30,14 @@ from scipy.ndimage import distance_transform_edt
 from scipy.spatial import cKDTree
 
 from ..errors import SpecError
-from ..geometry.base import Interface, Region
+from ..geometry.base import Interface, Region, nearest_interface_points
 from ..physics import ElasticitySolver, ElementGrid, SimpResult, simp
 from .derived import CELLS, smallest_feature, structural_cells
 from .problem import Problem
 
-__all__ = ["structural_solver", "structural_grid", "couple", "design_depth", "void_elements", "design_shares", "held_nodes",
-           "held_elements", "held_corners", "void_at", "in_obstacles", "simp_reference", "design_on", "resampled",
-           "upsample", "Reference", "CELLS", "VOID", "PENALTY"]
+__all__ = ["structural_solver", "structural_grid", "couple", "interface_normals", "design_depth", "void_elements",
+           "design_shares", "held_nodes", "held_elements", "held_corners", "void_at", "in_obstacles",
+           "simp_reference", "design_on", "resampled", "upsample", "Reference", "CELLS", "VOID", "PENALTY"]
 
 #: the ersatz material: the modulus of void relative to the solid's
 VOID = 1e-6
@@ -121,6 +121,28 @@ def _void_side(interfaces: list[Interface], points: np.ndarray, reach: float) ->
         out[hit] = True
         normal[hit] = nrm[ahead]
     return out, normal
+
+
+def interface_normals(interfaces: tuple[Interface | Region, ...], points: np.ndarray, h: float) -> np.ndarray:
+    """``(n, d)`` unit normals of the nearest of ``interfaces`` at the nearest point to each of
+    ``points`` ``(n, d)`` (their sign arbitrary): the direction from that nearest point, exact on
+    a circle or a line; a point within ``1e-6 h`` of an interface takes it from a probe ``1e-3 h``
+    away along the grid axis that leaves the interface fastest."""
+    x = torch.as_tensor(points, dtype=torch.float64)
+    dist, near = nearest_interface_points([w for w in interfaces if isinstance(w, Interface)], x)
+    v = (x - near).numpy()
+    on = np.flatnonzero(dist.numpy() <= 1e-6 * h)
+    if on.size:
+        best = np.zeros((on.size, v.shape[1]))
+        for a in range(v.shape[1]):
+            probe = x[on].clone()
+            probe[:, a] += 1e-3 * h
+            _, y = nearest_interface_points([w for w in interfaces if isinstance(w, Interface)], probe)
+            va = (probe - y).numpy()
+            longer = np.linalg.norm(va, axis=1) > np.linalg.norm(best, axis=1)
+            best[longer] = va[longer]
+        v[on] = best
+    return v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-300)
 
 
 def couple(x: np.ndarray, torque: tuple[float, ...]) -> np.ndarray:
@@ -275,6 +297,7 @@ def structural_solver(problem: Problem, grid: ElementGrid, method: str = "auto")
         raise SpecError(f"problem {problem.name}: no physics block")
     d = grid.dim
     fixed = np.zeros((grid.n_nodes, d), bool)
+    normals = np.zeros((grid.n_nodes, d))
     labels, case_labels = ph.labels
     for k, s in enumerate(ph.supports):
         near = _nodes(s.where, grid)
@@ -283,6 +306,12 @@ def structural_solver(problem: Problem, grid: ElementGrid, method: str = "auto")
                             f"{'x'.join(map(str, grid.shape))} element grid")
         for a in s.axes:
             fixed[near, a] = True
+        if s.normal:
+            n = interface_normals(s.where, grid.nodes[near], float(grid.h.min()))
+            if not np.all(np.abs(np.linalg.norm(n, axis=1) - 1.0) < 1e-9):
+                raise SpecError(f"spec field '{labels[k] if labels else 'physics.supports'}.fix': its interfaces "
+                                "have no distance to take a normal from")
+            normals[near] = n
     forces = np.zeros((len(ph.load_cases), grid.n_nodes, d))
     for c, case in enumerate(ph.load_cases):
         for j, load in enumerate(case.loads):
@@ -302,7 +331,7 @@ def structural_solver(problem: Problem, grid: ElementGrid, method: str = "auto")
     around = grid.node_elements[loaded]
     active[around[around >= 0]] = True
     solver = ElasticitySolver(grid, ph.poisson_ratio, fixed.reshape(-1), forces.reshape(len(ph.load_cases), -1),
-                              method=method, active=active)
+                              method=method, active=active, normals=normals if normals.any() else None)
     return solver, np.array([case.weight for case in ph.load_cases])
 
 
