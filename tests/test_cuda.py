@@ -145,6 +145,15 @@ def test_structural_solver_and_training_on_cuda(tmp_path, capsys):
         cg.sum().backward()
         assert torch.allclose(cg.cpu(), cc, rtol=1e-7)
         assert torch.allclose(Eg.grad.cpu(), Ec.grad, rtol=1e-6, atol=1e-9 * float(Ec.grad.abs().max()))
+        # the clamped edge held along its normal only, one corner fully: the nodes' own frames on the GPU
+        normals = np.where(np.isclose(x[:, :1], 0), np.eye(d)[0], 0.0)
+        fixed = np.zeros((g.n_nodes, d), bool)
+        fixed[np.flatnonzero(np.isclose(x[:, 0], 0))[:2]] = True
+        if d == 3:
+            fixed[np.isclose(x[:, 0], 0) & np.isclose(x[:, 2], 0), 2] = True
+        cpu = ElasticitySolver(g, 0.3, fixed.reshape(-1), F.reshape(1, -1), method="direct", normals=normals)
+        gpu = ElasticitySolver(g, 0.3, fixed.reshape(-1), F.reshape(1, -1), method="cg", normals=normals)
+        assert torch.allclose(compliance(E.to(DEVICE), gpu)[0].cpu(), compliance(E, cpu)[0], rtol=1e-7)
     run = tmp_path / "mbb"
     code, _, err = _run(["train", "mbb", "--iterations", "20", "--device", DEVICE, "--out", str(run), "--quiet",
                          "--set", "model.hidden=[32,32]", "--set", "training.feasibility_checks=2"], capsys)

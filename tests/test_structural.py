@@ -784,3 +784,20 @@ def test_coloured_meshes_of_a_3d_bar_in_tension(tmp_path):
     assert np.isfinite(e).all() and float(np.median(e)) == pytest.approx(0.25, rel=0.02)
     assert float(rep.fine()[1].work(U[None])[0, 0]) == pytest.approx(4.0, rel=0.02)
 
+
+def test_checks_resolve_a_structural_element_with_three_cells():
+    """A problem with physics is checked on a grid with 3 cells per element of its structural
+    grid (members an element thick stay in one piece there), up to ``ginn eval``'s grid."""
+    from ginn.config import CELLS_PER_LENGTH, RESOLUTION
+    from ginn.eval.feasibility import check_resolution
+    from ginn.problems.derived import structural_cells
+
+    bar = _spec().build()
+    cells = structural_cells(bar, smallest_feature(bar))
+    res = check_resolution(bar)
+    assert res % 8 == 0 and CELLS_PER_LENGTH * cells <= res < CELLS_PER_LENGTH * cells + 8
+    assert RESOLUTION["check"][2] < res <= RESOLUTION["eval"][2]
+    assert check_resolution(get_spec("cantilever-3d").build()) == 112  # 36 elements along its longest side
+    assert check_resolution(get_spec("bracket-loads").build()) == RESOLUTION["eval"][3]  # 46: capped
+    no_physics = validate_spec({k: v for k, v in BAR.items() if k != "physics"}).build()
+    assert check_resolution(no_physics) == RESOLUTION["check"][2]

@@ -41,7 +41,7 @@ from ..constraints.containment import judged_volume_outside
 from ..constraints.holes import BETTI_METRICS
 from ..constraints.verdict import Verdict, Violation
 from ..fields import Field
-from ..problems.derived import length_scale
+from ..problems.derived import length_scale, smallest_feature, structural_cells
 from ..problems.problem import Problem
 from .context import ExtractedShape
 from .metrics import MetricContext, diversity_mean, extract_shape, prepare_context, shape_metrics
@@ -162,12 +162,25 @@ def check_resolution(problem: Problem, verdicts: Sequence[Verdict] | None = None
     of 0.05 in a 3D domain 2 long: 1.6 cells of 64), so that the checks judge that verdict as
     ``ginn eval`` does. A ball a few cells wide is judged by the grid's luck: the bracket's shapes
     lose 1.1 to 1.4 % of their volume to the opening by a ball of 0.05 on 120 cells and 0.95 to
-    1.0 % on 128."""
+    1.0 % on 128.
+
+    A problem with a ``physics`` block is judged on a grid on which an element of its structural
+    grid (:func:`~ginn.problems.derived.structural_cells`) spans :data:`~ginn.config.CELLS_PER_LENGTH`
+    cells, up to ``ginn eval``'s: its shapes are trusses of members an element or two thick, which
+    a coarser grid cuts into pieces and whose volume it miscounts (a bell crank that ``ginn eval``
+    finds in one piece within its volume bound was 7 pieces and 0.2 % over the bound on 128
+    cells, one piece within the bound from 256 on), so the checks would raise and keep by what
+    the shape is not."""
     d = problem.dim
     base = default_resolution("check", d)
-    h = 2.0 * length_scale(problem) / base
+    top = max(base, default_resolution("eval", d))
+    longest = 2.0 * length_scale(problem)
+    h = longest / base
     if any(v.judges and v.resolves and v.resolves < CELLS_PER_LENGTH * h for v in _verdicts(problem, verdicts)):
-        return max(base, default_resolution("eval", d))
+        return top
+    if problem.physics is not None:
+        element = longest / structural_cells(problem, smallest_feature(problem))
+        return max(base, min(_cells_for(element, longest), top))
     return base
 
 
