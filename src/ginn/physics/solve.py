@@ -10,8 +10,8 @@ degrees of freedom are taken in a frame of its own (:class:`_Frames`), whose fir
 held directions, and the elements around it get the rotated matrix ``T_e^T K0 T_e``; the solve
 runs in those frames and returns Cartesian displacements. Every method solves over the *active*
 elements only (``active``: those of the design region, where a grid over a box has elements that
-stay void; default all): the others are left out (modulus zero) and the degrees of freedom of nodes with no active element are held at zero.
-Two methods solve ``K u = f``:
+stay void; default all): the others are left out (modulus zero) and the degrees of freedom of
+nodes with no active element are held at zero. Two methods solve ``K u = f``:
 
 * ``direct``: the assembled matrix of the solved degrees of freedom (one scatter of the element
   matrices into a precomputed pattern), factorised once per shape and solved for every load case,
@@ -76,8 +76,6 @@ class _DeviceData:
     active_mask: torch.Tensor  # (n_elements,) bool, True at the active elements
     solved: torch.Tensor  # (n_dofs,) 1.0 where the CG methods solve (not held), in the nodes' frames
     active_edof: torch.Tensor  # (n_active, k) the active elements' degrees of freedom
-    frame_nodes: torch.Tensor  # (m,) the nodes with a frame of their own
-    frames: torch.Tensor  # (m, d, d) their frames: Cartesian = frames @ local
     clamped: torch.Tensor  # (n_dofs,) 1.0 where the multigrid preconditioner solves (every framed node held)
     framed: torch.Tensor  # (n_dofs,) 1.0 at the framed nodes' solved degrees of freedom
 
@@ -110,6 +108,7 @@ class _Frames:
         self.Q = np.zeros((m, d, d))
         self.elements = np.zeros(0, dtype=np.int64)
         self.K0 = np.zeros((0,) + K0.shape)
+        self._on_device: dict = {}  # (device, dtype) -> (Q, nodes) as tensors there
         if m == 0:
             return
         held = np.zeros((m, d, d + 1))  # per node: its fixed axes' unit vectors and its normal, as columns
@@ -149,8 +148,11 @@ class _Frames:
             return out
         d = self.Q.shape[1]
         if is_torch:
-            Q = torch.as_tensor(self.Q, device=U.device, dtype=U.dtype)
-            nodes = torch.as_tensor(self.nodes, device=U.device)
+            key = (str(U.device), U.dtype)
+            if key not in self._on_device:
+                self._on_device[key] = (torch.as_tensor(self.Q, device=U.device, dtype=U.dtype),
+                                        torch.as_tensor(self.nodes, device=U.device))
+            Q, nodes = self._on_device[key]
             V = out.reshape(*out.shape[:-1], -1, d)
             V[..., nodes, :] = torch.einsum("mji,...mj->...mi" if transpose else "mij,...mj->...mi", Q, V[..., nodes, :])
             return out
@@ -409,8 +411,6 @@ class ElasticitySolver:
                 active_mask=torch.as_tensor(self.active, device=device),
                 solved=torch.as_tensor(~self.held, device=device, dtype=torch.float64),
                 active_edof=torch.as_tensor(self.grid.element_dofs[self.active], device=device),
-                frame_nodes=torch.as_tensor(self.frames.nodes, device=device),
-                frames=torch.as_tensor(self.frames.Q, device=device),
                 clamped=torch.as_tensor(~self._clamped(), device=device, dtype=torch.float64),
                 framed=torch.as_tensor(self._clamped() & ~self.held, device=device, dtype=torch.float64),
             )
