@@ -289,8 +289,12 @@ def structural_solver(problem: Problem, grid: ElementGrid, method: str = "auto")
     """The solver of ``problem``'s supports and load cases on ``grid`` (its material's Poisson ratio)
     and the load cases' weights ``(L,)``.
 
+    A support with ``normal`` holds its nodes along the normals of :func:`interface_normals` (the
+    solver's ``normals``).
+
     Raises:
-        SpecError: a support or a load that reaches no grid node (naming its spec field).
+        SpecError: a support or a load that reaches no grid node, or a support with ``normal`` on
+            interfaces with no distance to take a normal from (naming its spec field).
     """
     ph = problem.physics
     if ph is None:
