@@ -401,6 +401,7 @@ class ElasticitySolver:
     def _torch_data(self, device: torch.device) -> _DeviceData:
         key = str(device)
         if key not in self._torch_cache:
+            clamped = self._clamped()
             self._torch_cache[key] = _DeviceData(
                 K0=torch.as_tensor(self.K0, device=device),
                 edof=torch.as_tensor(self.grid.element_dofs, device=device),
@@ -411,8 +412,8 @@ class ElasticitySolver:
                 active_mask=torch.as_tensor(self.active, device=device),
                 solved=torch.as_tensor(~self.held, device=device, dtype=torch.float64),
                 active_edof=torch.as_tensor(self.grid.element_dofs[self.active], device=device),
-                clamped=torch.as_tensor(~self._clamped(), device=device, dtype=torch.float64),
-                framed=torch.as_tensor(self._clamped() & ~self.held, device=device, dtype=torch.float64),
+                clamped=torch.as_tensor(~clamped, device=device, dtype=torch.float64),
+                framed=torch.as_tensor(clamped & ~self.held, device=device, dtype=torch.float64),
             )
         return self._torch_cache[key]
 

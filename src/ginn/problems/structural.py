@@ -129,7 +129,8 @@ def interface_normals(interfaces: tuple[Interface | Region, ...], points: np.nda
     a circle or a line; a point within ``1e-6 h`` of an interface takes it from a probe ``1e-3 h``
     away along the grid axis that leaves the interface fastest."""
     x = torch.as_tensor(points, dtype=torch.float64)
-    dist, near = nearest_interface_points([w for w in interfaces if isinstance(w, Interface)], x)
+    interfaces = [w for w in interfaces if isinstance(w, Interface)]
+    dist, near = nearest_interface_points(interfaces, x)
     v = (x - near).numpy()
     on = np.flatnonzero(dist.numpy() <= 1e-6 * h)
     if on.size:
@@ -137,7 +138,7 @@ def interface_normals(interfaces: tuple[Interface | Region, ...], points: np.nda
         for a in range(v.shape[1]):
             probe = x[on].clone()
             probe[:, a] += 1e-3 * h
-            _, y = nearest_interface_points([w for w in interfaces if isinstance(w, Interface)], probe)
+            _, y = nearest_interface_points(interfaces, probe)
             va = (probe - y).numpy()
             longer = np.linalg.norm(va, axis=1) > np.linalg.norm(best, axis=1)
             best[longer] = va[longer]
