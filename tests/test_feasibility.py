@@ -1,6 +1,9 @@
 """Feasibility: the problem's tolerances applied to the metrics, during training and in ``ginn eval``."""
 
+import functools
 import json
+import os
+import signal
 
 import numpy as np
 import pytest
@@ -312,6 +315,94 @@ def test_run_ends_with_the_weights_of_the_most_feasible_check(tmp_path, keep):
     tr2.train()
     assert torch.equal(_flat(tr2.model), t2.seen[2])
     assert tr2.callbacks[-1].restored is None
+
+
+class ObjectiveFit(Judged):
+    """Every check finds its 4 shapes feasible; the objective is a fixed linear function of the
+    weights, so a mean candidate's is the mean of its iterates' (to rounding), at one volume."""
+
+    def __init__(self, cfg):
+        super().__init__(cfg)
+        self.direction = None
+
+    def feasibility(self, model):
+        return FeasibilitySummary(4, 4, [{}] * 4)
+
+    def objective(self, model):
+        w = _flat(model).double()
+        if self.direction is None:
+            self.direction = -torch.randn(w.shape, generator=torch.Generator().manual_seed(3), dtype=torch.float64)
+        return float(w @ self.direction), 0.5
+
+    def callbacks(self, dist=None):
+        return [FeasibilityChecks(self.feasibility, self.cfg.training, objective=self.objective)]
+
+
+def test_between_feasible_candidates_the_lower_objective_is_kept(tmp_path):
+    """Every candidate feasible at one volume: the run ends with the one of the lowest objective
+    among the iterates and interval means of its checks, and the checks log what they measured."""
+    c = build_config({"seed": 0, "training": {"iterations": 50, "lr": 1e-2, "feasibility_checks": 5}})
+    task = ObjectiveFit(c)
+    after = []
+    tr = Trainer(task, c, tmp_path, progress=False, hooks=[lambda t, step, v: after.append(_flat(t.model))])
+    tr.train()
+    steps = (10, 20, 30, 40, 50)
+    candidates = [after[s - 1] for s in steps] + [torch.stack(after[s - 10:s]).mean(0) for s in steps]
+    values = [float(w.double() @ task.direction) for w in candidates]
+    assert max(values) - min(values) > 1e-3  # the candidates differ
+    assert min(values) < min(values[4], values[9]) - 1e-6  # and the last check's are not the best
+    torch.testing.assert_close(_flat(tr.model).double() @ task.direction, torch.tensor(min(values), dtype=torch.float64),
+                               rtol=0, atol=1e-6)
+    checks = [json.loads(x) for x in (tmp_path / "metrics.jsonl").read_text().splitlines()]
+    checks = [e for e in checks if e.get("event") == "feasibility"]
+    # each check measures both of its candidates, to compare them with each other
+    logged = [e["objective"] for e in checks] + [e["mean"]["objective"] for e in checks]
+    assert [o for o, _ in logged] == pytest.approx(values, abs=1e-6) and {v for _, v in logged} == {0.5}
+
+
+def test_a_resumed_run_keeps_what_the_uninterrupted_one_keeps(tmp_path):
+    """The kept candidate's measured objective travels in the checkpoint: a run interrupted after
+    its third check and resumed ends with the weights of the run that went through."""
+    c = build_config({"seed": 0, "training": {"iterations": 50, "lr": 1e-2, "feasibility_checks": 5}})
+    whole = Trainer(ObjectiveFit(c), c, tmp_path / "a", progress=False)
+    whole.train()
+
+    def interrupt(trainer, step, values):
+        if trainer.step == 30:
+            os.kill(os.getpid(), signal.SIGINT)
+
+    first = Trainer(ObjectiveFit(c), c, tmp_path / "b", progress=False, hooks=[interrupt])
+    assert first.train().status == "interrupted" and first.step == 30
+    assert first.callbacks[-1].best["objective"] is not None
+    again = Trainer(ObjectiveFit(c), c, tmp_path / "b", progress=False)
+    assert again.resume() and again.step == 30
+    assert again.callbacks[-1].best["objective"] == first.callbacks[-1].best["objective"]
+    again.train()
+    assert torch.equal(_flat(again.model), _flat(whole.model))
+    assert again.callbacks[-1].best["objective"] == whole.callbacks[-1].best["objective"]
+
+
+def test_an_earlier_candidate_is_kept_only_stiffer_and_no_heavier():
+    """A higher rank wins whatever its objective; on an equal rank the later candidate (the first
+    argument) is kept unless both are feasible throughout and the other is better by the objective
+    with no more volume; without an objective the later one."""
+    def cand(k, objective, volume=0.5):
+        return {"summary": FeasibilitySummary(k, 4, [{}] * k + [{"interface": Violation(1.0, 0.5)}] * (4 - k)),
+                "model": None, "objective": [objective, volume]}
+
+    def measured(model):
+        raise AssertionError("the candidates carry their objectives")
+
+    checks = FeasibilityChecks(lambda m: None, build_config({}).training, objective=measured)
+    kept = functools.partial(checks._at_least, None)
+    assert kept(cand(4, 10.0), cand(3, 1.0)) and not kept(cand(3, 1.0), cand(4, 10.0))
+    assert kept(cand(4, 1.0), cand(4, 2.0)) and not kept(cand(4, 2.0), cand(4, 1.0))
+    assert kept(cand(4, 1.0), cand(4, 1.0))
+    assert not kept(cand(4, 2.0, 0.49), cand(4, 1.0, 0.48))  # stiffer and lighter
+    assert kept(cand(4, 2.0, 0.48), cand(4, 1.0, 0.49))  # stiffer by its weight
+    assert kept(cand(3, 2.0), cand(3, 1.0)) and kept(cand(3, 1.0), cand(3, 2.0))  # not feasible throughout
+    plain = FeasibilityChecks(lambda m: None, build_config({}).training)
+    assert plain._at_least(None, cand(4, 2.0), cand(4, 1.0))
 
 
 def test_the_kept_candidate_meets_the_sets_bounds_among_equals():

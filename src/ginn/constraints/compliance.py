@@ -159,12 +159,14 @@ class ComplianceReport(Verdict):
 
     name = "compliance"
     judges = False  # a solve on the fine grid per shape: ginn eval's, not the checks' during training
+    objective = True
 
     def __init__(self, problem: Problem):
         super().__init__(problem)
         self.metrics = ("compliance",)
         self._fine: tuple | None = None
         self._solved: dict[bytes, tuple[torch.Tensor, torch.Tensor]] = {}  # :meth:`prepare`'s solutions
+        self._shares: np.ndarray | None = None  # E's share of each fine element, for :meth:`objective_of`
 
     def fine(self) -> tuple:
         """``(grid, solver, weights, void)`` of the report's grid, built at the first use."""
@@ -227,6 +229,20 @@ class ComplianceReport(Verdict):
         disp = U.reshape(U.shape[0], -1, grid.dim).norm(dim=-1).max()
         return {"compliance": float(w @ cases), "compliance_cases": [float(c) for c in cases],
                 "max_displacement": float(disp)}
+
+    def objective_of(self, field, Z: torch.Tensor | None) -> tuple[float, float]:
+        """``(compliance, volume)``: the means over the shapes of ``Z`` ``(S, k)`` (None: the single
+        shape) of the weighted compliance of each thresholded shape on the fine grid (``measure``'s
+        ``compliance``, the shapes solved in one call, CG from a cold start whatever was solved
+        before) and of the volume fraction that solve held (its solid elements' shares of E)."""
+        grid, solver, w, _ = self.fine()
+        solver.load_warm_state({}, torch.device("cpu"))
+        solved = self.analyse_all(field, Z)
+        U = torch.stack([U for _, U, _ in solved])  # (S, L, n_dofs)
+        if self._shares is None:
+            self._shares = design_shares(self.problem, grid)
+        solids = np.stack([solid for solid, _, _ in solved])  # (S, n_elements)
+        return float((solver.work(U).numpy() @ w).mean()), float((solids @ self._shares).mean() / self._shares.sum())
 
     def violation(self, metrics: Mapping) -> Violation | None:
         return None

@@ -67,7 +67,9 @@ class Verdict(abc.ABC):
     1 says nothing of how far off a shape is; the check-driven multipliers raise such a bound's
     terms by their full factor, :mod:`ginn.train.balancing`), ``enforced_by`` (for a verdict that
     is no constraint's own: the loss terms whose multipliers its violation raises, as a
-    constraint's does its terms'). Instances: ``metrics``, the metric names it reads, and
+    constraint's does its terms'), ``objective`` (it measures the problem's objective,
+    :meth:`objective_of`: the feasibility checks keep an earlier of two feasible candidates by
+    it). Instances: ``metrics``, the metric names it reads, and
     ``resolves``, the least length its measure on a grid must resolve (None: none; the checks
     during training choose their grid by it, :func:`ginn.eval.feasibility.check_resolution`).
     """
@@ -77,6 +79,7 @@ class Verdict(abc.ABC):
     judges: ClassVar[bool] = True
     hard: ClassVar[bool] = False
     enforced_by: ClassVar[tuple[str, ...]] = ()
+    objective: ClassVar[bool] = False
 
     def __init__(self, problem: Problem):
         self.problem = problem
@@ -89,6 +92,13 @@ class Verdict(abc.ABC):
         (:class:`ginn.eval.context.ExtractedShape`), the problem's metric ``context``
         (:class:`ginn.eval.context.MetricContext`), the ``field`` and the shape's latent ``z``."""
         return {}
+
+    def objective_of(self, field, Z) -> tuple[float, float]:
+        """``(objective, volume)`` over the shapes of ``field`` at the codes ``Z`` ``(S, k)`` (None:
+        the single shape), for a verdict with ``objective``: the problem's objective (lower is
+        better) and the volume fraction it was measured on, each the mean over the shapes; none by
+        default."""
+        raise NotImplementedError(f"{type(self).__name__} measures no objective")
 
     @abc.abstractmethod
     def violation(self, metrics: Mapping) -> Violation | None:

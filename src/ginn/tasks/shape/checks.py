@@ -10,9 +10,11 @@ tolerances on a coarse grid (:class:`ginn.eval.feasibility.FeasibilityCheck`, th
   and the interval mean's (:func:`candidate_ratios`);
 * ``training.keep_most_feasible``: judges the mean of the weights since the previous check as
   well, and keeps the best candidate (:meth:`FeasibilitySummary.rank`: the most feasible shapes,
-  then the set's bounds met, then the most feasible held-out codes; the mean on a tie at one
-  check, the latest of equals); a completed run ends with it (a ``restored`` event when that is not the last
-  iterate);
+  then the set's bounds met, then the most feasible held-out codes; on a tie the mean at one
+  check, the latest of equals, unless both are feasible throughout and the problem measures an
+  objective, a verdict with ``objective`` (the compliance of a structural problem), by which the
+  other candidate is better, spending no more volume: :meth:`FeasibilityChecks._at_least`); a
+  completed run ends with it (a ``restored`` event when that is not the last iterate);
 * ``training.stop_when_feasible``: ends the run when every shape is feasible, the set meets its
   bounds and the objective terms moved by less than 1 % since the previous check.
 
@@ -27,6 +29,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
+from typing import TypeVar
 
 from torch import Tensor, nn
 
@@ -38,6 +41,8 @@ from ...train.distributed import DistContext
 from ...train.trainer import Trainer
 
 __all__ = ["FeasibilityChecks", "candidate_ratios"]
+
+T = TypeVar("T")
 
 
 def _heldout_record(h: FeasibilitySummary) -> dict:
@@ -74,14 +79,18 @@ class FeasibilityChecks(Callback):
         dist: the process group of a data-parallel run (torchrun): rank 0 judges, every rank
             takes its summaries, so the balancer, the terms' calibrations, the kept weights and a
             stop are the same on every rank (None: one process).
+        objective: ``(objective, volume)`` of the model's shapes, the objective lower is better (a
+            verdict's :meth:`~ginn.constraints.Verdict.objective_of`), or None where it measures none.
     """
 
     key = "feasibility"
 
     def __init__(self, judge: Callable[[nn.Module], FeasibilitySummary], training: TrainingConfig,
                  verdicts: Sequence[Verdict] = (), constraints: Sequence[Constraint] = (),
-                 dist: DistContext | None = None):
+                 dist: DistContext | None = None,
+                 objective: Callable[[nn.Module], tuple[float, float]] | None = None):
         self.judge, self.t, self.verdicts = judge, training, list(verdicts)
+        self.measure_objective = objective
         self.constraints = list(constraints)
         self.dist = dist
         self.last: FeasibilitySummary | None = None  # the last check's summary
@@ -190,16 +199,23 @@ class FeasibilityChecks(Callback):
         if raised:
             record["raised"] = {k: round(v, 4) for k, v in raised.items()}
         if self.t.keep_most_feasible:
-            candidates = [(summary, None)]
+            top = iterate = {"step": trainer.step, "summary": summary, "model": None, "mean": False,
+                             "mean_iterations": 0}
+            mean = None
             if averaged is not None:
-                candidates.append((averaged, interval_mean))
-            # the mean wins a tie: it is the centre of what the weights did over the interval
-            top, weights = max(reversed(candidates), key=lambda c: c[0].rank())
-            if self.best is None or top.rank() >= self.best["summary"].rank():
-                if weights is None:
-                    weights = {k: v.detach().clone() for k, v in trainer.model.state_dict().items()}
-                self.best = {"step": trainer.step, "summary": top, "model": weights, "mean": top is not summary,
-                             "mean_iterations": n_mean if top is not summary else 0}
+                mean = {"step": trainer.step, "summary": averaged, "model": interval_mean, "mean": True,
+                        "mean_iterations": n_mean}
+                # the mean wins a tie: it is the centre of what the weights did over the interval
+                if self._at_least(trainer.model, mean, iterate):
+                    top = mean
+            if self.best is None or self._at_least(trainer.model, top, self.best):
+                if top["model"] is None:
+                    top["model"] = {k: v.detach().clone() for k, v in trainer.model.state_dict().items()}
+                self.best = top
+            if iterate.get("objective") is not None:
+                record["objective"] = iterate["objective"]
+            if mean is not None and mean.get("objective") is not None:
+                record["mean"]["objective"] = mean["objective"]
         trainer.log(record)
         total, count = self.objective
         mean = total / count if count else None
@@ -210,6 +226,34 @@ class FeasibilityChecks(Callback):
             raise StopRun("completed", f"every shape feasible and the objectives steady at iteration {trainer.step}")
         return summary
 
+    def _at_least(self, model: nn.Module, a: dict, b: dict) -> bool:
+        """Whether candidate ``a`` (the later, or the mean at one check) is kept over ``b`` (each
+        ``{"summary", "model"}``, the weights None for the model's own): a higher
+        :meth:`FeasibilitySummary.rank`, or an equal one unless both are feasible throughout and
+        ``b`` is better by the problem's objective with no more volume (its shapes stiffer and no
+        heavier: better on any grid, where the stiffer of two parts at the volume bound may be the
+        one a finer grid finds over it: ``docs/structural.md``, "The kept candidate")."""
+        ra, rb = a["summary"].rank(), b["summary"].rank()
+        if ra != rb:
+            return ra > rb
+        if self.measure_objective is None or not (a["summary"].all_feasible and b["summary"].all_feasible):
+            return True
+        (ca, va), (cb, vb) = self._objective(model, a), self._objective(model, b)
+        return not (cb < ca and vb <= va)
+
+    def _objective(self, model: nn.Module, candidate: dict) -> tuple[float, float]:
+        """The candidate's ``(objective, volume)``, measured once (rank 0's in a data-parallel run)."""
+        if candidate.get("objective") is None:
+            def measure() -> tuple[float, float]:
+                if candidate["model"] is None:
+                    return self.measure_objective(model)
+                return self._with_weights(model, candidate["model"], self.measure_objective)
+
+            value = measure() if self.dist is None or self.dist.is_main else None
+            value = list(value if self.dist is None else self.dist.broadcast_object(value))
+            candidate["objective"] = value
+        return tuple(candidate["objective"])
+
     def _shared(self, judge: Callable[[], FeasibilitySummary]) -> FeasibilitySummary:
         """``judge()``; in a data-parallel run rank 0's, on every rank (the model is the same on all)."""
         if self.dist is None:
@@ -218,10 +262,15 @@ class FeasibilityChecks(Callback):
 
     def _judge_weights(self, model: nn.Module, weights: dict[str, Tensor]) -> FeasibilitySummary:
         """The summary of the model with ``weights`` (its own weights are put back)."""
+        return self._with_weights(model, weights, self.judge)
+
+    @staticmethod
+    def _with_weights(model: nn.Module, weights: dict[str, Tensor], measure: Callable[[nn.Module], T]) -> T:
+        """``measure(model)`` with ``weights`` loaded (the model's own are put back)."""
         own = {k: v.detach().clone() for k, v in model.state_dict().items()}
         model.load_state_dict(weights)
         try:
-            return self.judge(model)
+            return measure(model)
         finally:
             model.load_state_dict(own)
 

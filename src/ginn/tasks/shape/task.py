@@ -237,4 +237,7 @@ class ShapeTask(Task):
         t = self.cfg.training
         if t.feasibility_checks <= 0 or t.iterations <= 0:
             return []
-        return [FeasibilityChecks(lambda model: self.checker()(model, self.Z), t, self.verdicts(), self.constraints, dist)]
+        measures = [v for v in self.verdicts() if v.objective]
+        objective = None if not measures else (lambda model: measures[0].objective_of(model, self.Z))
+        return [FeasibilityChecks(lambda model: self.checker()(model, self.Z), t, self.verdicts(), self.constraints, dist,
+                                  objective=objective)]
