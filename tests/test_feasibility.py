@@ -404,6 +404,17 @@ def test_an_earlier_candidate_is_kept_only_stiffer_and_no_heavier():
     plain = FeasibilityChecks(lambda m: None, build_config({}).training)
     assert plain._at_least(None, cand(4, 2.0), cand(4, 1.0))
 
+    class OtherRank:  # a data-parallel rank other than 0 takes rank 0's measure
+        is_main = False
+
+        def broadcast_object(self, value):
+            assert value is None
+            return (3.0, 0.4)
+
+    ranked = FeasibilityChecks(lambda m: None, build_config({}).training, dist=OtherRank(), objective=measured)
+    fresh = {**cand(4, 0.0), "objective": None}
+    assert ranked._objective(None, fresh) == (3.0, 0.4) and fresh["objective"] == [3.0, 0.4]
+
 
 def test_the_kept_candidate_meets_the_sets_bounds_among_equals():
     """Candidates rank by feasible shapes, then by the set's bounds (a least diversity), then by
