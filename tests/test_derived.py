@@ -52,6 +52,22 @@ def test_a_stated_budget_keeps_the_schedule_in_thirds():
     assert (t.iterations, t.lr_decay_every) == (300, 100)  # the last stated budget
 
 
+def test_a_structural_problem_joins_its_pieces_from_the_end_of_the_continuation():
+    """With a ``physics`` block the connectedness term starts when the compliance's step width and
+    penalty are final (half the budget, stated or derived, unless the start is stated); without
+    one from the first step."""
+    from ginn.constraints.compliance import CONTINUATION
+
+    mbb = runs.resolve("mbb", None, {})[1]
+    assert mbb.losses.connectedness.start == CONTINUATION * mbb.training.iterations == 1000
+    assert runs.resolve("cantilever-3d", None, {})[1].losses.connectedness.start == 1800
+    assert runs.resolve("mbb", None, {}, sets=["training.iterations=300"])[1].losses.connectedness.start == 150
+    stated = runs.resolve("mbb", None, {}, sets=["training.iterations=300", "losses.connectedness.start=7"])[1]
+    assert stated.losses.connectedness.start == 7
+    assert _spec(1.0).config().losses.connectedness.start == 0
+    assert runs.resolve("obstacle", None, {})[1].losses.connectedness.start == 0
+
+
 def test_the_longest_side_sets_the_scale_and_3d_gets_its_budget():
     spec = validate_spec({"name": "t", "geometry": {"dim": 3, "domain": {"lo": [0, 0, 0], "hi": [1, 6, 2]}}})
     d, why = derived_defaults(spec.build())

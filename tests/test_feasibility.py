@@ -332,7 +332,7 @@ class ObjectiveFit(Judged):
         w = _flat(model).double()
         if self.direction is None:
             self.direction = -torch.randn(w.shape, generator=torch.Generator().manual_seed(3), dtype=torch.float64)
-        return float(w @ self.direction), 0.5
+        return float(w @ self.direction), 0.5, False
 
     def callbacks(self, dist=None):
         return [FeasibilityChecks(self.feasibility, self.cfg.training, objective=self.objective)]
@@ -357,7 +357,7 @@ def test_between_feasible_candidates_the_lower_objective_is_kept(tmp_path):
     checks = [e for e in checks if e.get("event") == "feasibility"]
     # each check measures both of its candidates, to compare them with each other
     logged = [e["objective"] for e in checks] + [e["mean"]["objective"] for e in checks]
-    assert [o for o, _ in logged] == pytest.approx(values, abs=1e-6) and {v for _, v in logged} == {0.5}
+    assert [o for o, _, _ in logged] == pytest.approx(values, abs=1e-6) and {v for _, v, _ in logged} == {0.5}
 
 
 def test_a_resumed_run_keeps_what_the_uninterrupted_one_keeps(tmp_path):
@@ -382,13 +382,13 @@ def test_a_resumed_run_keeps_what_the_uninterrupted_one_keeps(tmp_path):
     assert again.callbacks[-1].best["objective"] == whole.callbacks[-1].best["objective"]
 
 
-def test_an_earlier_candidate_is_kept_only_stiffer_and_no_heavier():
+def test_an_earlier_candidate_is_kept_only_stiffer_and_no_heavier_or_clear_of_the_bound():
     """A higher rank wins whatever its objective; on an equal rank the later candidate (the first
     argument) is kept unless both are feasible throughout and the other is better by the objective
-    with no more volume; without an objective the later one."""
-    def cand(k, objective, volume=0.5):
+    while no heavier or clear of the volume bound; without an objective the later one."""
+    def cand(k, objective, volume=0.5, inside=False):
         return {"summary": FeasibilitySummary(k, 4, [{}] * k + [{"interface": Violation(1.0, 0.5)}] * (4 - k)),
-                "model": None, "objective": [objective, volume]}
+                "model": None, "objective": [objective, volume, inside]}
 
     def measured(model):
         raise AssertionError("the candidates carry their objectives")
@@ -399,7 +399,8 @@ def test_an_earlier_candidate_is_kept_only_stiffer_and_no_heavier():
     assert kept(cand(4, 1.0), cand(4, 2.0)) and not kept(cand(4, 2.0), cand(4, 1.0))
     assert kept(cand(4, 1.0), cand(4, 1.0))
     assert not kept(cand(4, 2.0, 0.49), cand(4, 1.0, 0.48))  # stiffer and lighter
-    assert kept(cand(4, 2.0, 0.48), cand(4, 1.0, 0.49))  # stiffer by its weight
+    assert kept(cand(4, 2.0, 0.48), cand(4, 1.0, 0.49))  # stiffer by its weight, at the bound
+    assert not kept(cand(4, 2.0, 0.48), cand(4, 1.0, 0.49, inside=True))  # stiffer, clear of the bound
     assert kept(cand(3, 2.0), cand(3, 1.0)) and kept(cand(3, 1.0), cand(3, 2.0))  # not feasible throughout
     plain = FeasibilityChecks(lambda m: None, build_config({}).training)
     assert plain._at_least(None, cand(4, 2.0), cand(4, 1.0))
@@ -409,11 +410,11 @@ def test_an_earlier_candidate_is_kept_only_stiffer_and_no_heavier():
 
         def broadcast_object(self, value):
             assert value is None
-            return (3.0, 0.4)
+            return (3.0, 0.4, True)
 
     ranked = FeasibilityChecks(lambda m: None, build_config({}).training, dist=OtherRank(), objective=measured)
     fresh = {**cand(4, 0.0), "objective": None}
-    assert ranked._objective(None, fresh) == (3.0, 0.4) and fresh["objective"] == [3.0, 0.4]
+    assert ranked._objective(None, fresh) == (3.0, 0.4, True) and fresh["objective"] == [3.0, 0.4, True]
 
 
 def test_the_kept_candidate_meets_the_sets_bounds_among_equals():

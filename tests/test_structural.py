@@ -19,6 +19,7 @@ from ginn.constraints.compliance import (
     START_WIDTH,
     Compliance,
     ComplianceReport,
+    count_error,
     covered,
     solid_elements,
     volume_margin,
@@ -734,9 +735,30 @@ def test_objective_of_straight_bars_is_their_compliance_and_volume():
         vs.append(float(rep.solid(bar, z) @ shares / shares.sum()))
     a = 2 * Z[:, 0].numpy()
     assert cs == pytest.approx(2 / a, rel=0.02) and vs == pytest.approx(a, rel=0.03)
-    c, v = rep.objective_of(bar, Z)
+    c, v, inside = rep.objective_of(bar, Z)
     assert c == pytest.approx(np.mean(cs), rel=1e-12) and v == pytest.approx(np.mean(vs), rel=1e-12)
+    assert not inside  # 0.2 to 0.244 against a bound of 0.2
     assert rep.objective and not Verdict.objective
+
+    def clear(bound, codes):
+        spec = validate_spec(yaml.safe_load(BAR_IN_TENSION.replace("max: 0.2", f"max: {bound}")))
+        return ComplianceReport(spec.build()).objective_of(bar, codes)[2]
+
+    # the thickest bar, 0.2444 counted, is within 0.245 but not by twice its count's error (3.4e-4)
+    assert clear(0.3, Z) and clear(0.245, Z[:2]) and not clear(0.245, Z)
+
+
+def test_count_error_of_a_block_of_elements():
+    """A 4 x 3 block of solid elements in a 10 x 10 grid: 10 of its elements have a void face
+    neighbour, so the standard error of its count is sqrt(10 / 12) / 100; a block against the
+    grid's edge counts only the faces it shares with void."""
+    grid = ElementGrid((0.0, 0.0), (1.0, 1.0), (10, 10))
+    shares = np.ones(100)
+    solid = np.zeros((2, 10, 10), dtype=bool)
+    solid[0, 2:6, 3:6] = True
+    solid[1, 0:4, 0:3] = True  # in the corner: 6 elements face void
+    err = count_error(solid.reshape(2, -1), grid, shares)
+    assert err == pytest.approx([np.sqrt(10 / 12) / 100, np.sqrt(6 / 12) / 100])
 
 
 @pytest.mark.slow

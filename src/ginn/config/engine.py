@@ -134,7 +134,7 @@ class TrainingConfig(Strict):
         True, description="shape problems: each feasibility check judges the weights there and the mean of the weights "
         "since the previous check; the run ends with the candidate that found the most feasible shapes (then: the set's "
         "bounds met, the most feasible held-out codes; the latest of equals, the mean on a tie at one check, unless the "
-        "other is feasible throughout and better by the problem's objective with no more volume); "
+        "other is feasible throughout and better by the problem's objective with no more volume or clear of the volume bound); "
         "logged as a 'restored' event when that is not the last iterate")
     log: list[Literal["jsonl", "tensorboard"]] = Field(
         ["jsonl"], description="where the metrics go: jsonl (metrics.jsonl, always; resume and eval read it) and "

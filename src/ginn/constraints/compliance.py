@@ -71,9 +71,9 @@ from .base import Constraint, Setting, Stage
 from .batch import Batch
 from .verdict import Verdict, Violation
 
-__all__ = ["Compliance", "ComplianceReport", "report_grid", "solid_elements", "solid_at", "ELEMENTS", "CONTINUATION", "START_WIDTH",
-           "START_PENALTY", "continuation", "narrowed", "start_width", "covered",
-           "volume_margin"]
+__all__ = ["Compliance", "ComplianceReport", "count_error", "report_grid", "solid_elements", "solid_at",
+           "ELEMENTS", "CONTINUATION", "START_WIDTH", "START_PENALTY", "continuation", "narrowed",
+           "start_width", "covered", "volume_margin"]
 
 #: the key of the element centres' field values in a step (:meth:`ginn.constraints.batch.Batch.field_at`)
 ELEMENTS = "elements"
@@ -154,6 +154,22 @@ def solid_at(field, z, points: np.ndarray) -> np.ndarray:
     return torch.cat(out).numpy() <= 0
 
 
+def count_error(solids: np.ndarray, grid: ElementGrid, shares: np.ndarray) -> np.ndarray:
+    """``(S,)``: the standard error of the volume fraction that the element counts ``solids``
+    ``(S, n_elements)`` (bool) give, ``sqrt(n_b / 12) / n_E`` as :func:`volume_margin`'s, the
+    ``n_b`` boundary elements being the solid ones with a face neighbour that is not; ``shares``
+    ``(n_elements,)``: E's share of each element, ``n_E`` their sum."""
+    S = solids.shape[0]
+    cube = solids.reshape(S, *grid.shape)
+    edge = np.zeros_like(cube)
+    for axis in range(1, grid.dim + 1):
+        a = np.swapaxes(cube, 1, axis)
+        e = np.swapaxes(edge, 1, axis)
+        e[:, 1:] |= a[:, 1:] & ~a[:, :-1]
+        e[:, :-1] |= a[:, :-1] & ~a[:, 1:]
+    return np.sqrt(edge.reshape(S, -1).sum(axis=1) / 12.0) / max(float(shares.sum()), 1.0)
+
+
 class ComplianceReport(Verdict):
     """The compliance of the thresholded shape on the fine grid (module docstring); never violated."""
 
@@ -230,11 +246,13 @@ class ComplianceReport(Verdict):
         return {"compliance": float(w @ cases), "compliance_cases": [float(c) for c in cases],
                 "max_displacement": float(disp)}
 
-    def objective_of(self, field, Z: torch.Tensor | None) -> tuple[float, float]:
-        """``(compliance, volume)``: the means over the shapes of ``Z`` ``(S, k)`` (None: the single
-        shape) of the weighted compliance of each thresholded shape on the fine grid (``measure``'s
-        ``compliance``, the shapes solved in one call, CG from a cold start whatever was solved
-        before) and of the volume fraction that solve held (its solid elements' shares of E)."""
+    def objective_of(self, field, Z: torch.Tensor | None) -> tuple[float, float, bool]:
+        """``(compliance, volume, inside)``: the means over the shapes of ``Z`` ``(S, k)`` (None: the
+        single shape) of the weighted compliance of each thresholded shape on the fine grid
+        (``measure``'s ``compliance``, the shapes solved in one call, CG from a cold start whatever
+        was solved before) and of the volume fraction that solve held (its solid elements' shares of
+        E), and whether every shape's volume lies inside the bound by twice the standard error of
+        that count (:func:`count_error`; true without a bound)."""
         grid, solver, w, _ = self.fine()
         solver.load_warm_state({}, torch.device("cpu"))
         solved = self.analyse_all(field, Z)
@@ -242,7 +260,11 @@ class ComplianceReport(Verdict):
         if self._shares is None:
             self._shares = design_shares(self.problem, grid)
         solids = np.stack([solid for solid, _, _ in solved])  # (S, n_elements)
-        return float((solver.work(U).numpy() @ w).mean()), float((solids @ self._shares).mean() / self._shares.sum())
+        volumes = solids @ self._shares / self._shares.sum()
+        bound = self.problem.tolerances.volume_fraction
+        inside = bound is None or bound.max is None or bool(
+            np.all(volumes + 2 * count_error(solids, grid, self._shares) <= bound.max))
+        return float((solver.work(U).numpy() @ w).mean()), float(volumes.mean()), inside
 
     def violation(self, metrics: Mapping) -> Violation | None:
         return None

@@ -93,10 +93,11 @@ class Verdict(abc.ABC):
         (:class:`ginn.eval.context.MetricContext`), the ``field`` and the shape's latent ``z``."""
         return {}
 
-    def objective_of(self, field, Z) -> tuple[float, float]:
-        """``(objective, volume)`` over the shapes of ``field`` at the codes ``Z`` ``(S, k)`` (None:
-        the single shape), for a verdict with ``objective``: the problem's objective (lower is
-        better) and the volume fraction it was measured on, each the mean over the shapes; none by
+    def objective_of(self, field, Z) -> tuple[float, float, bool]:
+        """``(objective, volume, inside)`` over the shapes of ``field`` at the codes ``Z`` ``(S, k)``
+        (None: the single shape), for a verdict with ``objective``: the problem's objective (lower
+        is better) and the volume fraction it was measured on, each the mean over the shapes, and
+        whether every shape lies inside its volume bound by more than that measure's error; none by
         default."""
         raise NotImplementedError(f"{type(self).__name__} measures no objective")
 

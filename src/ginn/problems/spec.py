@@ -395,18 +395,33 @@ class ProblemSpec(BaseModel):
 
     def _derived_for(self, upper: list[dict]) -> dict:
         """The derived layer under the partial configurations ``upper``: a budget stated there
-        (``training.iterations``) without ``training.lr_decay_every`` keeps the derived schedule's
-        shape (the learning rate halved every third of the run)."""
+        (``training.iterations``) keeps the derived schedule's shape, the learning rate halved every
+        third of the run (``training.lr_decay_every``) and a structural problem's connectedness term
+        from half the run (``losses.connectedness.start``), where those are not stated too."""
         derived = self.derived()[0]
-        stated = [layer.get("training") or {} for layer in upper if isinstance(layer, dict)]
-        iterations = [t["iterations"] for t in stated if isinstance(t, dict) and "iterations" in t]
-        if ("lr_decay_every" not in derived.get("training", {}) or not iterations
-                or any(isinstance(t, dict) and "lr_decay_every" in t for t in stated)):
-            return derived
-        n = iterations[-1]
+        stated = [layer for layer in upper if isinstance(layer, dict)]
+        trainings = [layer.get("training") or {} for layer in stated]
+        iterations = [t["iterations"] for t in trainings if isinstance(t, dict) and "iterations" in t]
+        n = iterations[-1] if iterations else None
         if not isinstance(n, int) or isinstance(n, bool) or n < 3:
-            return derived  # left to the configuration's own checks
-        return {**derived, "training": {**derived["training"], "lr_decay_every": n // 3}}
+            return derived  # nothing stated, or left to the configuration's own checks
+
+        def given(group: str, *keys: str) -> bool:
+            for layer in stated:
+                node = layer.get(group)
+                for k in keys:
+                    node = node.get(k) if isinstance(node, dict) else None
+                if node is not None:
+                    return True
+            return False
+
+        out = dict(derived)
+        if "lr_decay_every" in derived.get("training", {}) and not given("training", "lr_decay_every"):
+            out["training"] = {**derived["training"], "lr_decay_every": n // 3}
+        connectedness = derived.get("losses", {}).get("connectedness", {})
+        if "start" in connectedness and not given("losses", "connectedness", "start"):
+            out["losses"] = {**derived["losses"], "connectedness": {**connectedness, "start": n // 2}}
+        return out
 
     def preset_layers(self, preset: str | None) -> list[dict]:
         """The partial configurations of ``preset``, outermost first: a preset that says

@@ -13,7 +13,8 @@ tolerances on a coarse grid (:class:`ginn.eval.feasibility.FeasibilityCheck`, th
   then the set's bounds met, then the most feasible held-out codes; on a tie the mean at one
   check, the latest of equals, unless both are feasible throughout and the problem measures an
   objective, a verdict with ``objective`` (the compliance of a structural problem), by which the
-  other candidate is better, spending no more volume: :meth:`FeasibilityChecks._at_least`); a
+  other candidate is better, spending no more volume or clear of the volume bound:
+  :meth:`FeasibilityChecks._at_least`); a
   completed run ends with it (a ``restored`` event when that is not the last iterate);
 * ``training.stop_when_feasible``: ends the run when every shape is feasible, the set meets its
   bounds and the objective terms moved by less than 1 % since the previous check.
@@ -79,8 +80,9 @@ class FeasibilityChecks(Callback):
         dist: the process group of a data-parallel run (torchrun): rank 0 judges, every rank
             takes its summaries, so the balancer, the terms' calibrations, the kept weights and a
             stop are the same on every rank (None: one process).
-        objective: ``(objective, volume)`` of the model's shapes, the objective lower is better (a
-            verdict's :meth:`~ginn.constraints.Verdict.objective_of`), or None where it measures none.
+        objective: ``(objective, volume, inside)`` of the model's shapes, the objective lower is
+            better (a verdict's :meth:`~ginn.constraints.Verdict.objective_of`), or None where it
+            measures none.
     """
 
     key = "feasibility"
@@ -88,7 +90,7 @@ class FeasibilityChecks(Callback):
     def __init__(self, judge: Callable[[nn.Module], FeasibilitySummary], training: TrainingConfig,
                  verdicts: Sequence[Verdict] = (), constraints: Sequence[Constraint] = (),
                  dist: DistContext | None = None,
-                 objective: Callable[[nn.Module], tuple[float, float]] | None = None):
+                 objective: Callable[[nn.Module], tuple[float, float, bool]] | None = None):
         self.judge, self.t, self.verdicts = judge, training, list(verdicts)
         self.measure_objective = objective
         self.constraints = list(constraints)
@@ -230,21 +232,20 @@ class FeasibilityChecks(Callback):
         """Whether candidate ``a`` (the later, or the mean at one check) is kept over ``b`` (each
         ``{"summary", "model"}``, the weights None for the model's own): a higher
         :meth:`FeasibilitySummary.rank`, or an equal one unless both are feasible throughout and
-        ``b`` is better by the problem's objective with no more volume (its shapes stiffer and no
-        heavier: better on any grid, where the stiffer of two parts at the volume bound may be the
-        one a finer grid finds over it: ``docs/structural.md``, "The kept candidate")."""
+        ``b`` is better by the problem's objective while it spends no more volume than ``a`` or
+        lies clear of the volume bound (``docs/structural.md``, "The kept candidate")."""
         ra, rb = a["summary"].rank(), b["summary"].rank()
         if ra != rb:
             return ra > rb
         if self.measure_objective is None or not (a["summary"].all_feasible and b["summary"].all_feasible):
             return True
-        (ca, va), (cb, vb) = self._objective(model, a), self._objective(model, b)
-        return not (cb < ca and vb <= va)
+        (ca, va, _), (cb, vb, inside) = self._objective(model, a), self._objective(model, b)
+        return not (cb < ca and (vb <= va or inside))
 
-    def _objective(self, model: nn.Module, candidate: dict) -> tuple[float, float]:
-        """The candidate's ``(objective, volume)``, measured once (rank 0's in a data-parallel run)."""
+    def _objective(self, model: nn.Module, candidate: dict) -> tuple[float, float, bool]:
+        """The candidate's ``(objective, volume, inside)``, measured once (rank 0's in a data-parallel run)."""
         if candidate.get("objective") is None:
-            def measure() -> tuple[float, float]:
+            def measure() -> tuple[float, float, bool]:
                 if candidate["model"] is None:
                     return self.measure_objective(model)
                 return self._with_weights(model, candidate["model"], self.measure_objective)
