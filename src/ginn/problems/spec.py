@@ -420,7 +420,8 @@ class ProblemSpec(BaseModel):
             out["training"] = {**derived["training"], "lr_decay_every": n // 3}
         connectedness = derived.get("losses", {}).get("connectedness", {})
         if "start" in connectedness and not given("losses", "connectedness", "start"):
-            out["losses"] = {**derived["losses"], "connectedness": {**connectedness, "start": n // 2}}
+            share = connectedness["start"] * n // derived["training"]["iterations"]  # the same share of the budget
+            out["losses"] = {**derived["losses"], "connectedness": {**connectedness, "start": share}}
         return out
 
     def preset_layers(self, preset: str | None) -> list[dict]:
